@@ -5,6 +5,7 @@ do (:func:`odd_literal`) or its verb means two tasks (:func:`two_ways`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 
@@ -72,11 +73,13 @@ other bowl, please", "sorry, I meant the other one" (normalised words, grammar.p
 class Offer(Ambiguous):
     """A yes-or-no question back: the sentence read literally asks for what a_pl cannot do (the
     jar put inside the bowl); ``offer`` is what it most likely means (pour the jar's content
-    into the bowl), done on a "yes"."""
+    into the bowl), done on a "yes"; ``other``, the other command the question names, if any
+    (only take it in a hand)."""
 
-    def __init__(self, message: str, offer: Command) -> None:
+    def __init__(self, message: str, offer: Command, other: Command | None = None) -> None:
         super().__init__(message, -1, ())
         self.offer = offer
+        self.other = other
 
 
 def odd_literal(intent: Command, vocab: Vocabulary) -> Offer | None:
@@ -98,11 +101,11 @@ def odd_literal(intent: Command, vocab: Vocabulary) -> Offer | None:
     )
 
 
-TWO_WAYS = frozenset({"grab"})
-"""Verbs of bringing that as often mean only taking in a hand ("grab the bowl": bring it, or
-pick it up?): said bare, without a recipient or a place, they are asked back."""
+TWO_WAYS = frozenset({"grab", "take"})
+"""Verbs of bringing that as often mean only taking in a hand ("grab the bowl", "take it":
+bring it, or pick it up?): said bare, without a recipient or a place, they are asked back."""
 BARE_ONLY = frozenset(
-    {"BRING", "DET", "ADJ", "NOUN", "PLURAL", "ONE", "IT", "PLEASE", "ADDRESS", "ASK", "POLITE"}
+    {"BRING", "TAKE", "DET", "ADJ", "NOUN", "PLURAL", "ONE", "IT", "PLEASE", "ADDRESS", "ASK", "POLITE"}
 )
 """Word kinds a bare "grab X" holds: anything else ("me", "here", "for me", "to the table")
 says where it goes."""
@@ -115,7 +118,10 @@ def two_ways(intent: Command, kinds: list[str], verb: str) -> Offer | None:
     if intent.goal.name != "bring" or verb not in TWO_WAYS or not set(kinds) <= BARE_ONLY:
         return None
     x = show(intent.goal.args[0])
-    return Offer(f"Should I bring you {x}? Say 'yes', or 'pick it up' to only take it in my hand.", intent)
+    take = dataclasses.replace(intent, goal=TaskAtom("fetch", intent.goal.args))
+    return Offer(
+        f"Should I bring you {x}? Say 'yes', or 'pick it up' to only take it in my hand.", intent, take
+    )
 
 
 YES = re.compile(

@@ -8,8 +8,9 @@ before a noun or adjective of the :class:`~.vocabulary.Vocabulary` of the same l
 "within N seconds|minutes|hours" and "in N …" become one ``DEADLINE`` token (its value in
 seconds, N digits or a number word of :data:`NUMBERS`; a negative or zero value is kept for
 language.py to refuse), "within" not followed by one ``WITHIN``, and so is "N unit max" ("two
-minutes max", "ten seconds tops"); a first word "now" before others is a discourse marker
-("Now, put the bowl away"), not an urgency; after "would you mind" a
+minutes max", "ten seconds tops"); a first word "now" before others (after an opener at
+most: "okay", "so", an address) is a discourse marker ("Now, put the bowl away", "okay now
+pour …"), not an urgency; after "would you mind" a
 gerund of a closed-class verb is read as the verb ("pouring" as "pour"); a plural of a known
 noun is ``PLURAL``; a word a_km does not use but near in meaning to a describing word it uses
 ("tiny" to "small", similarity.py) is ``ADJ`` (meaning.py reads it as the one the thing has);
@@ -191,6 +192,29 @@ WORDS: dict[str, tuple[str, ...]] = {
         "i guess",
         "i suppose",
         "or something",
+        "i think",
+        "i reckon",
+        "reckon",
+        "come on",
+        "hmm",
+        "hmmm",
+        "mm",
+        "ah",
+        "oh",
+        "ah yes",
+        "oh yes",
+        "let me see",
+        "let me think",
+        "lets see",
+        "no worries",
+        "na",
+        "innit",
+        "eh",
+        "yeah",
+        "firstly",
+        "first of all",
+        "do one thing",
+        "do the needful and",
     ),
     # (a word of address, or a word said around a command that carries nothing: "… lol")
     "URGENT": (
@@ -236,6 +260,8 @@ WORDS: dict[str, tuple[str, ...]] = {
         "swiftly",
         "speedily",
         "rapidly",
+        "fastly",
+        "hastily",
         "real quick",
         "really quick",
         "double quick",
@@ -406,7 +432,12 @@ WORDS: dict[str, tuple[str, ...]] = {
         "pop",
         "rest",
         "plonk",
+        "shove",
+        "bung",
+        "whack",
+        "keep",
     ),
+    # (not "throw", "toss" or "chuck": "throw it away", "chuck it out" mean to get rid of it)
     "RETURN": ("return", "store", "stow", "replace", "stash"),
     "HAND": ("hand", "give", "pass"),
     # wishes: "I would like the cup" (brought), "can I have the cup" (handed over)
@@ -604,7 +635,8 @@ def normalise(sentence: str) -> list[str]:
     jar's" → "the", "jar", "s"), other apostrophes dropped ("what's" → "whats", "don't" →
     "dont"); other punctuation a space; decimal points kept ("1.5") and a minus sign directly
     before a number ("-5"); hyphens between words a space ("twenty-five"); a short form of
-    texting or speech as its words (:data:`SHORT_FORMS`: "u" → "you", "gimme" → "give me")."""
+    texting or speech as its words (:data:`SHORT_FORMS`: "u" → "you", "gimme" → "give me"), an
+    expletive left out ("the damn cup")."""
     text = sentence.lower().replace("’", "'").replace("‘", "'").replace("−", "-")
     text = re.sub(r"([a-z0-9]+)'s\b", lambda m: m[1] + ("s" if m[1] in _CONTRACTED else " s"), text)
     text = text.replace("'", "")
@@ -613,6 +645,13 @@ def normalise(sentence: str) -> list[str]:
     text = re.sub(r"(?<!\S)-+(?=[0-9])", "-", text)
     text = re.sub(r"-(?![0-9])|(?<=\S)-", " ", text)
     return [w for word in text.split() for w in SHORT_FORMS.get(word, (word,))]
+
+
+EXPLETIVES = (
+    "damn", "damned", "darn", "dang", "bloody", "blooming", "flipping", "freaking", "frigging",
+    "friggin", "fricking", "effing", "goddamn", "goddamned", "blasted", "stupid",
+)  # fmt: skip
+"""Words said in impatience that carry nothing ("bring the damn cup"): left out of the words."""
 
 
 SHORT_FORMS: dict[str, tuple[str, ...]] = {
@@ -624,9 +663,11 @@ SHORT_FORMS: dict[str, tuple[str, ...]] = {
         "gimme": "give me", "lemme": "let me", "wanna": "want to", "gotta": "got to",
         "rn": "right now", "pls": "please", "plz": "please", "youd": "you would", "cuz": "because",
         "coz": "because", "cos": "because",
+        **dict.fromkeys(EXPLETIVES, ""),
     }.items()
 }  # fmt: skip
-"""Short forms people type or say, read as the words they stand for."""
+"""Short forms people type or say, read as the words they stand for; an expletive
+(:data:`EXPLETIVES`) as none."""
 
 
 def _deadline(words: list[str], i: int) -> tuple[int, float] | None:
@@ -764,9 +805,25 @@ def tag(
                 base = words[i]  # "the tiny bowl": a describing word meaning one a_km uses (meaning.py)
             out.append(Word("ADJ", (base,), len(out)) if base else Word("WORD", (words[i],), len(out)))
             i += 1
-    if len(out) > 1 and out[0].kind == "URGENT" and out[0].words == ("now",):
-        out[0] = Word("POLITE", out[0].words, 0)  # "Now, put the bowl away": a discourse marker
+    _discourse_now(out)
     return tuple(out)
+
+
+OPENING_KINDS = frozenset({"ASK", "POLITE", "ADDRESS", "AND", "PLEASE"})
+OPENING_WORDS = frozenset({"alright", "right", "well", "okay", "ok", "so", "oh"})
+
+
+def _discourse_now(out: list[Word]) -> None:
+    """Retag, in place, a first "now" before other words (after openers only) as a discourse
+    marker ("(Okay,) now, put the bowl away"), not an urgency."""
+    first = next((j for j, w in enumerate(out) if not _opening(w)), len(out))
+    if first < len(out) - 1 and out[first].kind == "URGENT" and out[first].words == ("now",):
+        out[first] = Word("POLITE", out[first].words, first)
+
+
+def _opening(word: Word) -> bool:
+    """Whether ``word`` may open a line before its first "now" ("okay", "so", "robot", "and")."""
+    return word.kind in OPENING_KINDS or word.words[0] in OPENING_WORDS
 
 
 @functools.cache

@@ -49,12 +49,14 @@ from services.agents.human_interface.dialogue import (
     OTHER_ONE,
     Answered,
     Dialogue,
+    Offer,
     Pending,
     answer_to_offer,
     odd_literal,
     two_ways,
 )
 from services.agents.human_interface.grammar import ParseFailure, Word, normalise
+from services.agents.human_interface.inflection import verb_lemmas
 from services.agents.human_interface.intents import (
     STORAGE,
     URGENT_PRIORITY,
@@ -78,9 +80,17 @@ from services.agents.human_interface.questions import Resolve, read_question
 from services.agents.human_interface.script import other_language, unreadable
 from services.agents.human_interface.similarity import is_word
 from services.agents.human_interface.spelling import candidates, correctable, known_words
+from services.agents.human_interface.steps import Said, bare_bring, one_goal
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
-from services.agents.human_interface.tolerance import MAX_SENTENCES, NEGATING, TYPO, readings, sentences
+from services.agents.human_interface.tolerance import (
+    COURTESY,
+    MAX_SENTENCES,
+    NEGATING,
+    TYPO,
+    readings,
+    sentences,
+)
 from services.agents.human_interface.vocabulary import KNOWLEDGE_FILES, Vocabulary
 
 EXAMPLES = (
@@ -301,7 +311,7 @@ def _read_otherwise(
         )
 
     asked: tuple[NotUnderstood, Pending | None] | None = None
-    for text in readings(sentence, tag, rules.verb_kinds):
+    for text in readings(sentence, tag, rules.verb_kinds, verb_lemmas):
         try:
             intent = _interpret_line(text, priority, vocab, talk, rules)
         except Ambiguous as exc:  # which thing, or "should I pour …?": asked if no reading is an intent
@@ -324,24 +334,43 @@ def _said_again(
     sentence: str, priority: int, vocab: Vocabulary, talk: Dialogue, rules: Grammar
 ) -> Intent | None:
     """The command of a line of several sentences, or of requests joined by "and", that each
-    ask for it ("I want the bowl. Bring it to me!": "it" the bowl the first names; "pick up the
-    bowl and hold it"), the most urgent priority and the nearest deadline said; None when one
-    of them reads as anything else (the dialogue unchanged)."""
-    parts = sentences(sentence)
-    if len(parts) == 1:  # "pick up the bowl and hold it": one command said twice
-        parts = [p for p in AND.split(sentence) if p.strip()]
+    ask for it or only prepare it (steps.py: "I want the bowl. Bring it to me!": "it" the bowl
+    the first names; "pick up the jar and pour it into the bowl"), the most urgent priority and
+    the nearest deadline said; None when one of them reads as anything else (the dialogue
+    unchanged)."""
+    parts = _requests_said(sentence, vocab, rules)
     if not 1 < len(parts) <= MAX_SENTENCES:
         return None
     turn = dataclasses.replace(talk)
-    commands = _commands(parts, priority, vocab, turn, rules)
-    if commands is None or len({c.goal for c in commands}) != 1:
+    said = _requests(parts, priority, vocab, turn, rules)
+    commands = None if said is None else one_goal(said)
+    if commands is None:
         return None
-    talk.last, talk.pending, talk.answered = turn.last, turn.pending, turn.answered
-    return _merged(commands)
+    talk.last, talk.pending, talk.answered = turn.last, None, turn.answered
+    merged = _merged(commands)
+    if len({c.goal for c in commands}) == 1:
+        return merged
+    return dataclasses.replace(merged, read_as=((sentence.strip(), parts[-1].strip()), *merged.read_as))
 
 
-AND = re.compile(r",?\s+\band(?:\s+then)?\s+", re.IGNORECASE)
-"""Where a sentence joins two requests with "and" ("…, and then …")."""
+def _requests_said(sentence: str, vocab: Vocabulary, rules: Grammar) -> list[str]:
+    """The sentences of ``sentence``, or its parts joined by "and" (:data:`AND`) when it is one,
+    without those that only thank ("Thanks.")."""
+    parts = sentences(sentence)
+    if len(parts) == 1:  # "pick up the bowl and hold it": one command said twice
+        parts = [p for p in AND.split(sentence) if p.strip()]
+    if len(parts) > 1:  # "First find the jar, then …": an order of steps, no urgency
+        parts[0] = FIRST.sub("", parts[0], count=1)
+    return [p for p in parts if not all(w.kind in COURTESY for w in rules.tag(p, vocab))]
+
+
+FIRST = re.compile(r"^\s*(?:first(?:ly| of all)?|to start with)\b[\s,]*", re.IGNORECASE)
+"""How the first of several steps may begin ("First take the jar. Then …")."""
+
+
+AND = re.compile(r",?\s+\band(?:\s+then)?\s+|,\s*then\s+", re.IGNORECASE)
+"""Where a sentence joins two requests with "and" or ", then" ("…, and then …", "first find
+the jar, then bring it to me")."""
 
 
 def _merged(commands: list[Command]) -> Command:
@@ -356,21 +385,32 @@ def _merged(commands: list[Command]) -> Command:
     )
 
 
-def _commands(
+def _requests(
     parts: list[str], priority: int, vocab: Vocabulary, turn: Dialogue, rules: Grammar
-) -> list[Command] | None:
-    """The command each of ``parts`` reads as, in order, in the dialogue ``turn``; None when one
-    reads as anything else or is not understood."""
-    commands = []
+) -> list[Said] | None:
+    """The command (or yes-or-no question back) each of ``parts`` reads as, in order, in the
+    dialogue ``turn``; None when one reads as anything else or is not understood."""
+    said: list[Said] = []
     for part in parts:
         try:
             intent = _interpret_line(part, priority, vocab, turn, rules)
+        except Offer as offer:
+            said.append(offer)
+            continue
         except NotUnderstood:
             return None
         if not isinstance(intent, Command):
             return None
-        commands.append(intent)
-    return commands
+        said.append(_bare_bring(intent, part, vocab, rules))
+    return said
+
+
+def _bare_bring(intent: Command, part: str, vocab: Vocabulary, rules: Grammar) -> Said:
+    """``intent``; a bring said with no one to bring it to ("take the cup and put it away") as
+    either it or only taking the thing in a hand (steps.py: a step of what follows)."""
+    if intent.goal.name != "bring" or any(w.kind in ("ME", "HERE", "TO") for w in rules.tag(part, vocab)):
+        return intent
+    return bare_bring(intent)
 
 
 CRITICAL_KINDS = frozenset({"STOP", "URGENT", "EVERYTHING"})
@@ -693,7 +733,7 @@ def _interpret_words(
         talk.answered = None  # a new command: "the other one" no longer refers to an answer
         if intent.goal.args:
             talk.last = intent.goal.args[0]
-        verb = next((w.text for w in words if w.kind == "BRING"), "")
+        verb = next((w.text for w in words if w.kind in ("BRING", "TAKE")), "")
         odd = odd_literal(intent, vocab) or two_ways(intent, [w.kind for w in words], verb)
         if odd is not None:
             talk.pending = Pending(sentence, priority, -1, (), question=str(odd), offer=odd.offer)

@@ -18,7 +18,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from services.agents.human_interface import similarity
+from services.agents.human_interface import inflection, similarity
 from services.agents.human_interface.language import Dialogue, Intent, NotUnderstood, interpret
 from services.agents.human_interface.task_grammar import Grammar
 from services.agents.human_interface.vocabulary import Vocabulary
@@ -52,7 +52,8 @@ class LineReader:
 
     def start(self) -> None:
         """Start the reader's thread (if not started), which first loads the word-similarity
-        model (similarity.py, ≈ 0.4 s), so that the first line read does not wait for it."""
+        model (similarity.py, ≈ 0.4 s) and the verb forms (inflection.py, ≈ 0.2 s), so that the
+        first line read does not wait for them."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="a_hi-reader", daemon=True)
             self._thread.start()
@@ -65,8 +66,9 @@ class LineReader:
     def _run(self) -> None:
         try:
             similarity.load()
+            inflection.load()
         except (ImportError, OSError):  # each line needing it is then refused, and logged
-            log.exception("the word-similarity model did not load")
+            log.exception("the word-similarity model or the verb forms did not load")
         while True:
             reading, vocabulary = self._lines.get()
             event = reading.event

@@ -29,7 +29,8 @@ grammar of commands, not of everything said around them).
 5. **A reason, a beneficiary or a courtesy after the command** ("… for the kids", "… before
    the baby knocks it over", "… when you're done"): left out from the word that begins it
    (:data:`TAIL_OPENERS`) to the end, when what it holds names no object a_km knows, no verb,
-   stop, urgency or deadline, and no negation or condition (:data:`CONDITIONS`).
+   stop, urgency or deadline, and no negation or condition (:data:`CONDITIONS`); a last
+   "already" said in impatience too.
 6. **Terse commands without a verb** ("Bowl on table.", "Cup back in cabinet.", "Beans into
    the bowl, quick.", "Bowl to me, now!"): read with "put" before them when the line names a
    place (on, in, back, away), with "bring" when it says "to me" or "here", and is no question
@@ -37,6 +38,10 @@ grammar of commands, not of everything said around them).
 7. **When, said apart** ("pour the jar into the bowl, I need it within a minute"): a clause
    that holds only a deadline or an urgency and words of a wish ("I need it") is joined to the
    command.
+8. **A wish with the verb after the thing** ("I need the beans poured into the bowl", "can you
+   get the cup brought to me", "make the beans go in the bowl"): read as the command with the
+   verb's base form first (inflection.py; "go" as "put"), when only words of a wish or courtesy
+   stand before the thing and the line holds no negation or condition.
 
 Before these, a line of several sentences (:func:`sentences`) is read as each one of them
 alone whose other sentences are asides: they hold no command word (a verb, a stop, an
@@ -47,8 +52,8 @@ sentence read is the one object the asides name, if they name one ("find the bow
 Each reading is read as a whole line is (language.py :func:`~.language.interpret`) and the
 first that gives an intent is taken; the intent says what was read (``read_as``: the line and
 the text read), so the person hears it. A reading never adds a word that changes what is
-meant: it only leaves words out, moves words, adds "the", names what "it" is, or adds "put" to
-a line that has no verb.
+meant: it only leaves words out, moves words, adds "the", names what "it" is, adds "put" to
+a line that has no verb, or says a verb in its base form.
 
 The work is bounded: the line is at most ``MAX_LINE_CHARS`` characters (services/runtime/
 human.py), at most :data:`MAX_CLAUSES` clauses are looked at and at most :data:`MAX_READINGS`
@@ -118,9 +123,12 @@ Tagger = Callable[[str], tuple[Word, ...]]
 """The tags of a text (a_hi's grammar and vocabulary: task_grammar.py ``Grammar.tag``)."""
 
 
-def readings(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
+def readings(
+    line: str, tag: Tagger, verbs: frozenset[str], lemmas: Callable[[str], tuple[str, ...]] = lambda w: ()
+) -> list[str]:
     """The other texts to read for ``line``, best first (module docstring); ``verbs``: the
-    kinds of word that begin a command (``Grammar.verb_kinds``). Empty when there is none."""
+    kinds of word that begin a command (``Grammar.verb_kinds``); ``lemmas``: a word's base
+    forms as a verb (inflection.py ``verb_lemmas``; none by default). Empty when there is none."""
     out: list[str] = []
 
     def add(text: str) -> None:
@@ -145,14 +153,139 @@ def readings(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
     for base in [line, *out]:
         add(reordered(base, tag, verbs))
         add(without_tail(base, tag, verbs))
+        add(without_impatience(base, tag, verbs))
         add(verbless(base, tag, verbs))
         add(time_joined(base, tag))
+        add(wished(base, tag, verbs, lemmas))
+    for base in [line, *out]:
+        add(without_unknown(base, tag, verbs))
     return out[:MAX_READINGS]
+
+
+UNKNOWN_THING_BEFORE = frozenset({"DET", "ADJ", "POSS", "OF"})
+"""Kinds of word after which an unknown word names a thing a_hi does not know ("the school")."""
+ACTED_ON = frozenset({"DET", "NOUN", "PLURAL", "CONTENTS", "IT", "ME", "ONE", "ADJ", "EVERYTHING"})
+"""Kinds of word before which an unknown word may act on a thing ("burn the jar", "next to it"
+is "next" before "to": see :func:`_harmless`)."""
+
+
+def without_unknown(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
+    """``line`` without the words a_hi does not know, when each is harmless (:func:`_harmless`)
+    and the line asks for one task with no negation, condition or question word first ("could
+    you kindly just pour the beans into the bowl real quick mate"); else ``line``."""
+    words = tag(line)
+    if not _plain_request(line, words, verbs):
+        return line
+    if not all(_harmless(words, i) for i, w in enumerate(words) if w.kind == "WORD"):
+        return line
+    return " ".join(w.text for w in words if w.kind != "WORD")
+
+
+def _plain_request(line: str, words: tuple[Word, ...], verbs: frozenset[str]) -> bool:
+    """Whether ``words`` hold one verb of a task (said once or again), no negation, condition,
+    stop, progress question or possible typo, and begin with no question word."""
+    tasks = {w.kind for w in words if w.kind in verbs and w.kind not in NOT_TASKS}
+    if len(tasks) != 1 or (words and words[0].words[0] in QUESTION_WORDS):
+        return False
+    blocked = ("STOP", "STATUS", "STATUS_TAIL", TYPO)
+    return not any(_negation(w) or w.words[0] in CONDITIONS or w.kind in blocked for w in words)
+
+
+def _harmless(words: tuple[Word, ...], i: int) -> bool:
+    """Whether the unknown ``words[i]`` can be left out without changing what is asked: it
+    names no thing (no determiner or describing word before it), acts on none (no object after
+    it, nor a "to"/"in"/"on" with one: "next to it") and is no time ("a minute ago")."""
+    before = words[i - 1].kind if i > 0 else ""
+    after = words[i + 1].kind if i + 1 < len(words) else ""
+    then = words[i + 2].kind if i + 2 < len(words) else ""
+    if before in UNKNOWN_THING_BEFORE or after in ACTED_ON or _timed(words[i]):
+        return False
+    return not (after in ("TO", "IN", "ON") and then in ACTED_ON)
 
 
 TIME_KINDS = frozenset({"DEADLINE", "URGENT"})
 WISH_WORDS = frozenset({"i", "we", "need", "want", "it", "that", "this", "done", "ready", "by", "please"})
 """Words a clause that only says when may hold besides the time ("I need it within a minute")."""
+
+
+NOT_TASKS = frozenset({"STATUS", "STOP", "WANT", "W_DO", "W_HAVE", "HAVE", "W_SHOW", "W_TELL", "W_CHECK"})
+"""Verb kinds that begin no task of a_pl's ("stopped", "wanted", "done", "shown")."""
+GO = frozenset({"go", "goes"})
+""""The beans go in the bowl": the thing is to be put there ("went" says where it was)."""
+MODALS = frozenset(
+    {"need", "needs", "to", "should", "must", "has", "have", "got", "can", "could", "will", "would", "shall"}
+)
+"""Words between the thing and what is to be done to it ("the bowl needs to go …", "the beans
+should be poured …")."""
+WISHING = MODALS | {"i", "we", "want", "wants", "wanna", "like", "id", "get", "make", "let"}
+"""Words of a wish before the thing wished done ("I need the beans poured …", "make the beans
+go …", "can the bowl go …")."""
+WISH_KINDS = frozenset({"PLEASE", "POLITE", "ADDRESS", "THANKS", "ASK", "WANT", "W_HAVE", "HAVE"})
+PHRASE = frozenset({"DET", "ADJ", "NOUN", "PLURAL", "CONTENTS", "ONE", "IT", "POSS", "OF"})
+"""Kinds of word of a noun phrase."""
+
+
+def wished(line: str, tag: Tagger, verbs: frozenset[str], lemmas: Callable[[str], tuple[str, ...]]) -> str:
+    """``line`` as a command when it wishes a thing done with a task's verb after the thing
+    ("I need the beans poured into the bowl" → "pour the beans into the bowl", "can you get the
+    cup brought to me", "make the beans go in the bowl" → "put the beans in the bowl", "the cup
+    should be in the cabinet" → "put the cup in the cabinet"; module docstring 8): ``lemmas``
+    gives a word's base forms as a verb (inflection.py). Else ``line``; also when the line holds
+    a negation or a condition."""
+    words = tag(line)
+    if any(_negation(w) or w.words[0] in CONDITIONS for w in words):
+        return line
+    done = ((i, v) for i in range(len(words)) if (v := _done_verb(words, i, tag, verbs, lemmas)))
+    at, verb = next(done, (0, ""))
+    thing = _wished_thing(words, at) if verb else None
+    if thing is None:
+        return line
+    return " ".join([verb, *(w.text for w in words[thing[0] : thing[1]]), *(w.text for w in words[at + 1 :])])
+
+
+def _wished_thing(words: tuple[Word, ...], at: int) -> tuple[int, int] | None:
+    """Where the thing wished done by the verb ``words[at]`` stands (start, end), when only
+    modal words stand between them and only words of a wish before it; None otherwise, also
+    for a participle with no wish ("the beans poured into …" is said, not asked)."""
+    end = _before(words, at, lambda w: w.words[0] in MODALS or w.words == ("be",))
+    start = _before(words, end, lambda w: w.kind in PHRASE)
+    if start == end or not all(_wishing(w) for w in words[:start]):
+        return None
+    return (start, end) if start > 0 or end < at or words[at].words[0] in GO else None
+
+
+def _before(words: tuple[Word, ...], i: int, keep: Callable[[Word], bool]) -> int:
+    """The index of the first of the words before ``i`` that all ``keep`` (``i`` when none)."""
+    while i > 0 and keep(words[i - 1]):
+        i -= 1
+    return i
+
+
+def _done_verb(
+    words: tuple[Word, ...],
+    at: int,
+    tag: Tagger,
+    verbs: frozenset[str],
+    lemmas: Callable[[str], tuple[str, ...]],
+) -> str:
+    """The task verb ``words[at]`` says done ("poured" → "pour", "goes" → "put", "be" before a
+    place → "put"), or ""."""
+    word = words[at]
+    if word.words[0] in GO:
+        return "put"
+    if word.words == ("be",):
+        return "put" if at + 1 < len(words) and words[at + 1].kind in PLACES else ""
+    if word.kind != "WORD":
+        return ""
+    tasks = verbs - NOT_TASKS
+    return next(
+        (lemma for lemma in lemmas(word.text) if [w.kind for w in tag(lemma)] in ([k] for k in tasks)), ""
+    )
+
+
+def _wishing(word: Word) -> bool:
+    """Whether ``word`` may stand before the thing wished done (:data:`WISHING`, courtesy)."""
+    return word.kind in WISH_KINDS or set(word.words) <= WISHING
 
 
 def time_joined(line: str, tag: Tagger) -> str:
@@ -176,8 +309,16 @@ def _only_when(words: tuple[Word, ...]) -> str:
     return " ".join(w.text for w in words if w.kind in TIME_KINDS)
 
 
-TAIL_OPENERS = frozenset({"for", "before", "because", "cause", "so", "when", "whenever", "once"})
-"""Words that begin a reason, a beneficiary or a courtesy after a command (module docstring 5)."""
+TAIL_OPENERS = frozenset(
+    {
+        "for", "before", "because", "cause", "so", "when", "whenever", "once",
+        "i", "im", "ive", "id", "my", "we", "were", "our", "youre", "thats",
+    }
+)  # fmt: skip
+"""Words that begin a reason, a beneficiary, a courtesy or a remark after a command, said
+without a comma ("… pls my mom is coming", "… and then you're all set"; module docstring 5)."""
+TAIL_JOINS = frozenset({"and", "then", "so"})
+"""Words that joined the command to a tail left out: they go with it."""
 CONDITIONS = frozenset({"if", "unless", "until", "only", "after", "while", "then"})
 """Words that make what follows a command a condition on it: never left out."""
 TAIL_KEEPS = OBJECT | ASIDE_STOPPERS | {"HERE", "AND"}
@@ -188,11 +329,22 @@ def without_tail(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
     when that carries nothing a_hi needs (module docstring 5); else ``line``."""
     words = tag(line)
     at = next((i for i, w in enumerate(words) if i > 1 and w.words[0] in TAIL_OPENERS), None)
-    if at is None or not any(w.kind in verbs for w in words[:at]):
+    if (
+        at is None
+        or not any(w.kind in verbs for w in words[:at])
+        or any(_keeps(w, verbs) for w in words[at:])
+    ):
         return line
-    if any(_keeps(w, verbs) for w in words[at:]):
-        return line
-    return " ".join(w.text for w in words[:at])
+    return " ".join(w.text for w in words[: _before(words, at, lambda w: set(w.words) <= TAIL_JOINS)])
+
+
+def without_impatience(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
+    """``line`` without a last "already" said in impatience after a command ("bring me the cup
+    already"; module docstring 5); else ``line``."""
+    words = tag(line)
+    if len(words) > 2 and words[-1].words == ("already",) and any(w.kind in verbs for w in words):
+        return " ".join(w.text for w in words[:-1])
+    return line
 
 
 def _keeps(word: Word, verbs: frozenset[str]) -> bool:
@@ -220,11 +372,61 @@ def _aside(sentence: str, tag: Tagger, verbs: frozenset[str]) -> bool:
     """Whether ``sentence`` carries nothing of a command (module docstring): a remark, or a
     question the person asks aloud, whatever its verb ("Where did I leave my cup?")."""
     words = tag(sentence)
-    asked = _asked_aloud(sentence, words)
-    stated = [w for w in words if not (asked and w.kind in verbs)]
+    negated = _negated(words)
+    stated = _stated(sentence, words, verbs, negated)
     if _looks_like_request(words) or any(_carries(w, verbs) for w in stated):
         return False
-    return not (_negated(words) and any(w.kind in OBJECT for w in words))
+    return not (negated and any(w.kind in OBJECT for w in words))
+
+
+def _stated(sentence: str, words: tuple[Word, ...], verbs: frozenset[str], negated: bool) -> list[Word]:
+    """The words of ``sentence`` that may ask for something: not the verbs of a question asked
+    aloud or of what the person says of themselves, not a time said past, not an urgency
+    negated ("I'm not as quick as I was")."""
+    told = _asked_aloud(sentence, words) or _said_of_oneself(words)
+    past = _past(words) | _described(words)
+    return [
+        w
+        for i, w in enumerate(words)
+        if not (told and w.kind in verbs) and i not in past and not (negated and w.kind == "URGENT")
+    ]
+
+
+COPULA = frozenset({"is", "are", "was", "were", "s", "looks", "seems"})
+"""Words after which a verb's word describes ("the bowl is empty")."""
+
+
+def _described(words: tuple[Word, ...]) -> frozenset[int]:
+    """The indices of the words said of a thing after "is" ("the bowl is empty": "empty" is no
+    verb there)."""
+    return frozenset(i for i in range(1, len(words)) if words[i - 1].words[-1] in COPULA)
+
+
+AGO = "ago"
+
+
+def _past(words: tuple[Word, ...]) -> frozenset[int]:
+    """The indices of the words of a time said past ("a minute ago", "5 mins ago"): it says when
+    something was, not when a command is due."""
+    return frozenset(
+        j
+        for i, w in enumerate(words)
+        if w.words == (AGO,)
+        for j in range(max(0, i - 2), i)
+        if _timed(words[j])
+    )
+
+
+FIRST_PERSON = frozenset({"i", "im", "ive"})
+"""Words a sentence the person says of themselves begins with ("I have a bowl here.")."""
+WISH_VERBS = frozenset({"WANT", "HAVE"})
+"""Verb kinds of a wish: a sentence of oneself holding one asks ("I'd like the cup.")."""
+
+
+def _said_of_oneself(words: tuple[Word, ...]) -> bool:
+    """Whether ``words`` begin with "I" and wish nothing: what their verbs say is told, not
+    asked ("I have a bowl here.", "I put the cup somewhere.")."""
+    return bool(words) and words[0].words[0] in FIRST_PERSON and not any(w.kind in WISH_VERBS for w in words)
 
 
 def _asked_aloud(sentence: str, words: tuple[Word, ...]) -> bool:
@@ -252,17 +454,52 @@ def one_sentence(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
     out = []
     for i in range(len(parts) - 1, -1, -1):
         if all(asides[:i] + asides[i + 1 :]):
-            out.append(_it_named(parts[i], parts[:i] + parts[i + 1 :], tag))
+            out.append(_it_named(parts[i], parts[:i], parts[i + 1 :], tag))
     return out
 
 
-def _it_named(sentence: str, others: list[str], tag: Tagger) -> str:
-    """``sentence`` with its "it" replaced by the one object ``others`` name ("the bowl"), if
-    they name exactly one; else as it is."""
-    named = [w for other in others for w in tag(other) if w.kind in ("NOUN", "PLURAL", "CONTENTS")]
-    if len(named) != 1 or not any(w.kind == "IT" for w in tag(sentence)):
+NAMES = frozenset({"NOUN", "PLURAL", "CONTENTS"})
+PLURAL_PRONOUNS = frozenset({"them", "they", "those", "these"})
+
+
+def _it_named(sentence: str, before: list[str], after: list[str], tag: Tagger) -> str:
+    """``sentence`` with its "it" ("them") replaced by the object the asides ``before`` and
+    ``after`` it name: the one they name (of "them", the one named in the plural: "The beans are
+    in the jar. I want them in the bowl."), else the subject of the aside just before it ("The
+    cup is on the table. Put it back."); as it is when none is found."""
+    pronoun = next((w for w in tag(sentence) if w.kind == "IT"), None)
+    if pronoun is None:
         return sentence
-    return re.sub(r"\b(?:it|that)\b", f"the {named[0].text}", sentence, count=1, flags=re.IGNORECASE)
+    named = _named(pronoun, before + after, tag)
+    if len({w.text for w in named}) != 1:
+        named = _subject(before[-1], tag) if before else []
+    if not named:
+        return sentence
+    word = re.escape(pronoun.text)
+    return re.sub(rf"\b{word}\b", f"the {named[0].text}", sentence, count=1, flags=re.IGNORECASE)
+
+
+def _named(pronoun: Word, others: list[str], tag: Tagger) -> list[Word]:
+    """The objects ``others`` name that ``pronoun`` may stand for (of "them", those named in the
+    plural)."""
+    named = [w for other in others for w in tag(other) if w.kind in NAMES]
+    if pronoun.words[0] in PLURAL_PRONOUNS:
+        return [w for w in named if w.text.endswith("s") and not w.text.endswith("ss")]
+    return named
+
+
+SUBJECT_OPENERS = frozenset({"theres", "there", "is", "heres", "here", "you", "see", "do", "can", "know"})
+"""Words before the thing a sentence is about ("There's a jar …", "You see the bowl …?")."""
+
+
+def _subject(sentence: str, tag: Tagger) -> list[Word]:
+    """The noun ``sentence`` begins with, as its subject ("The cup is …", "There's a jar …",
+    "You see the bowl …?"), as a list of one; else empty."""
+    words = list(tag(sentence))
+    while words and words[0].words[0] in SUBJECT_OPENERS:
+        words = words[1:]
+    i = _after(words, 0, ("DET", "ADJ"))
+    return [words[i]] if 0 < i < len(words) and words[i].kind in NAMES else []
 
 
 OPENING = frozenset({"PLEASE", "POLITE", "ADDRESS", "THANKS"})
@@ -327,6 +564,7 @@ COMMENT_STARTS = frozenset(
         "brilliant", "perfect", "wonderful", "such", "cant", "dont", "isnt", "no", "sorry",
         "cheers", "ta", "anyway", "anyways", "well", "okay", "ok", "alright", "right", "honey",
         "dear", "love", "sweetie", "darling", "mummy", "mum", "mom", "daddy", "dad", "big", "bless",
+        "see",
     }
 )  # fmt: skip
 """Words a remark may begin with (pronouns, interjections, words of address, comments): a
@@ -432,7 +670,7 @@ def _keeps_prefix(word: Word) -> bool:
 def reordered(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
     """``line`` in the order a_hi's grammar reads (module docstring 4): courtesy words after the
     first word left out, "the" before a bare object, "VERB to me X" as "VERB X to me"."""
-    words = _fronted(_without_you(list(tag(line)), verbs), verbs)
+    words = _fronted(_with_place(_without_you(list(tag(line)), verbs)), verbs)
     tail: list[str] = []
     if len(words) > 3 and words[0].kind in verbs and (words[1].kind, words[2].kind) == ("TO", "ME"):
         words, tail = [words[0], *words[3:]], ["to", "me"]
@@ -445,6 +683,28 @@ def reordered(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
             out.append("the")
         out.append(word.text)
     return " ".join(out + tail)
+
+
+FRAME_PLACES = {"POUR": ("into", "IN"), "EMPTY": ("into", "IN"), "PUT": ("in", "IN")}
+"""The word that joins the second object of a verb's frame to the first ("pour X into Y")."""
+AFTER_FRAME = OPENING | TIME_KINDS | {"WITHIN"}
+
+
+def _with_place(words: list[Word]) -> list[Word]:
+    """``words`` with the word of the verb's frame put between its two bare objects ("pour jar
+    bowl", "pour(jar, bowl)", "place cup cabinet" → "pour jar into bowl", "place cup in
+    cabinet"; a_hi's grammar reads "in the table" as on it), when nothing but courtesy or a
+    time follows them; else as they are."""
+    if not words or words[0].kind not in FRAME_PLACES:
+        return words
+    first = _after(words, 1, ("DET", "ADJ"))
+    second = _after(words, first + 1, ("DET", "ADJ"))
+    if second >= len(words) or words[first].kind != "NOUN" or words[second].kind != "NOUN":
+        return words
+    if not all(w.kind in AFTER_FRAME for w in words[second + 1 :]):
+        return words
+    text, kind = FRAME_PLACES[words[0].kind]
+    return [*words[: first + 1], Word(kind, (text,), words[first + 1].index), *words[first + 1 :]]
 
 
 def _left_out(words: list[Word], i: int) -> bool:
@@ -473,7 +733,7 @@ def _fronted(words: list[Word], verbs: frozenset[str]) -> list[Word]:
     """``words`` with an object said before its verb put after it: "the jar please put on the
     table" → "put the jar on the table", "jar on table put please" → "put jar on table please"
     (courtesy before the object stays first)."""
-    start = next((i for i, w in enumerate(words) if w.kind not in OPENING), len(words))
+    start = next((i for i, w in enumerate(words) if w.kind not in OPENING and w.kind != "ASK"), len(words))
     end = _after(words, start, ("DET", "ADJ", "NOUN"))
     if end < len(words) and words[end].kind in ("ON", "IN", "TO"):  # its place, said before the verb
         end = _after(words, end + 1, ("DET", "ADJ", "NOUN"))
