@@ -10,8 +10,8 @@ seconds, N digits or a number word of :data:`NUMBERS`; a negative or zero value 
 language.py to refuse), "within" not followed by one ``WITHIN``, and so is "N unit max" ("two
 minutes max", "ten seconds tops"); a first word "now" before others (after an opener at
 most: "okay", "so", an address) is a discourse marker ("Now, put the bowl away", "okay now
-pour …"), not an urgency; after "would you mind" a
-gerund of a closed-class verb is read as the verb ("pouring" as "pour"); a plural of a known
+pour …"), not an urgency; after "would you mind" (or
+"how about") a gerund of a closed-class verb is read as the verb ("pouring" as "pour"); a plural of a known
 noun is ``PLURAL``; a word a_km does not use but near in meaning to a describing word it uses
 ("tiny" to "small", similarity.py) is ``ADJ`` (meaning.py reads it as the one the thing has);
 any other word is ``WORD``, which no rule accepts, so that the parse stops
@@ -53,6 +53,10 @@ WORDS: dict[str, tuple[str, ...]] = {
     "POLITE": (
         "could you maybe",
         "would you mind",
+        "how about",
+        "what about",
+        "why dont you",
+        "why not",
         "do you mind",
         "i want you to",
         "i need you to",
@@ -796,7 +800,7 @@ def tag(
                     out[-1] = Word(kind, out[-1].words + tuple(words[i : i + n]), out[-1].index)
                 else:
                     out.append(Word(kind, tuple(words[i : i + n]), len(out)))
-                gerund = gerund or (lexicon[phrase] == "POLITE" and phrase[-1] == "mind")
+                gerund = gerund or (lexicon[phrase] == "POLITE" and phrase[-1] in ("mind", "about"))
                 i += n
                 break
         else:

@@ -84,9 +84,9 @@ from services.agents.human_interface.steps import Said, bare_bring, one_goal
 from services.agents.human_interface.stop import StopWords, command_openings
 from services.agents.human_interface.task_grammar import Grammar, default_grammar
 from services.agents.human_interface.tolerance import (
-    COURTESY,
     MAX_SENTENCES,
     NEGATING,
+    OPENING,
     TYPO,
     readings,
     sentences,
@@ -355,13 +355,13 @@ def _said_again(
 
 def _requests_said(sentence: str, vocab: Vocabulary, rules: Grammar) -> list[str]:
     """The sentences of ``sentence``, or its parts joined by "and" (:data:`AND`) when it is one,
-    without those that only thank ("Thanks.")."""
+    without those that only thank or open ("Thanks.", "Hmm.", "Okay.")."""
     parts = sentences(sentence)
     if len(parts) == 1:  # "pick up the bowl and hold it": one command said twice
         parts = [p for p in AND.split(sentence) if p.strip()]
     if len(parts) > 1:  # "First find the jar, then …": an order of steps, no urgency
         parts[0] = FIRST.sub("", parts[0], count=1)
-    return [p for p in parts if not all(w.kind in COURTESY for w in rules.tag(p, vocab))]
+    return [p for p in parts if not all(w.kind in OPENING or w.kind == "ASK" for w in rules.tag(p, vocab))]
 
 
 FIRST = re.compile(r"^\s*(?:first(?:ly| of all)?|to start with)\b[\s,]*", re.IGNORECASE)
@@ -399,6 +399,8 @@ def _requests(
             continue
         except NotUnderstood:
             return None
+        if isinstance(intent, WorldQuestion):  # "Where is the jar? … Bring it.": it names the jar
+            continue
         if not isinstance(intent, Command):
             return None
         said.append(_bare_bring(intent, part, vocab, rules))

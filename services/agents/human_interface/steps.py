@@ -70,10 +70,13 @@ def one_goal(said: list[Said]) -> list[Command] | None:
 
 
 def _last(earlier: list[Said], last: Said) -> Command | None:
-    """The command the last request asks for: its own; of a question back, the one of the two
-    it names that an ``earlier`` request names too (None when not exactly one)."""
+    """The command the last request asks for: its own (a bring as said); of a question back,
+    the one of the two it names that an ``earlier`` request names too (None when not exactly
+    one)."""
     if isinstance(last, Command):
         return last
+    if isinstance(last, Either):  # a bring, as said: it is no step of anything after it
+        return last.offer
     named = [g for s in earlier for g in _goals(s)]
     choices = [c for c in (last.offer, last.other) if c is not None and c.goal in named]
     return choices[0] if len(choices) == 1 else None

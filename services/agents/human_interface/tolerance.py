@@ -521,11 +521,11 @@ def verbless(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
 
 
 def _terse_verb(words: tuple[Word, ...]) -> str:
-    """The verb a terse line means: "put" when it names a place, "bring" when it says "to me"
-    or "here", else ""."""
-    if any(w.kind in PLACES for w in words):
-        return "put"
-    return "bring" if _to_me(words) else ""
+    """The verb a terse line means: "bring" when it says "to me" or "here", "put" when it names
+    a place or where to ("Beans to bowl."), else ""."""
+    if _to_me(words):
+        return "bring"
+    return "put" if any(w.kind in PLACES or w.kind == "TO" for w in words) else ""
 
 
 def _to_me(words: tuple[Word, ...]) -> bool:
@@ -674,6 +674,7 @@ def reordered(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
     tail: list[str] = []
     if len(words) > 3 and words[0].kind in verbs and (words[1].kind, words[2].kind) == ("TO", "ME"):
         words, tail = [words[0], *words[3:]], ["to", "me"]
+    words = _without_dative(words)
     out: list[str] = []
     for i, word in enumerate(words):
         if _left_out(words, i):
@@ -705,6 +706,15 @@ def _with_place(words: list[Word]) -> list[Word]:
         return words
     text, kind = FRAME_PLACES[words[0].kind]
     return [*words[: first + 1], Word(kind, (text,), words[first + 1].index), *words[first + 1 :]]
+
+
+def _without_dative(words: list[Word]) -> list[Word]:
+    """``words`` without a "me" right after a verb of putting or pouring that has its object
+    after it ("can you pour me the beans in the bowl?"): the person is not where it goes."""
+    at = next((i for i, w in enumerate(words) if w.kind in FRAME_PLACES), None)
+    if at is None or at + 2 >= len(words) or words[at + 1].kind != "ME" or words[at + 2].kind not in PHRASE:
+        return words
+    return [*words[: at + 1], *words[at + 2 :]]
 
 
 def _left_out(words: list[Word], i: int) -> bool:
