@@ -17,9 +17,9 @@ the input's work fixed)."""
 
 @functools.cache
 def _lemmas() -> object:
-    from lemminflect import getLemma
+    from lemminflect import getAllLemmas
 
-    return getLemma
+    return getAllLemmas
 
 
 def load() -> None:
@@ -29,12 +29,13 @@ def load() -> None:
 
 @functools.lru_cache(maxsize=4096)
 def verb_lemmas(word: str) -> tuple[str, ...]:
-    """The base forms ``word`` (lower case) may be of as a verb, most likely first: ("pour",)
-    for "poured"; () for a word longer than :data:`MAX_WORD` or no letters only."""
+    """The base forms ``word`` (lower case) is of as a verb in LemmInflect's dictionary, most
+    likely first: ("pour",) for "poured", ("see", "saw") for "saw"; () for a word it holds no
+    verb form of ("possible"), longer than :data:`MAX_WORD` or not of letters only."""
     if len(word) > MAX_WORD or not word.isalpha():
         return ()
     get = _lemmas()
-    return tuple(get(word, upos="VERB"))  # type: ignore[operator]
+    return tuple(get(word, upos="VERB").get("VERB", ()))  # type: ignore[operator]
 
 
 __all__ = ["MAX_WORD", "load", "verb_lemmas"]

@@ -427,7 +427,7 @@ class Reader:
             f"Where should I put {show(x)}? Say e.g. 'put {show(x)} on the table'.",
             "destination",
         )
-        if y == STORAGE and (back or prep.type == "IN"):
+        if y == STORAGE and (back or prep.type != "ON"):  # "… to the cupboard": into it, not onto it
             return TaskAtom("return", (x,))
         if x in self.by_content and prep.type == "IN" and y not in (SURFACE, STORAGE):
             return TaskAtom("pour", (x, y))  # "put the beans into the bowl": what is in x goes

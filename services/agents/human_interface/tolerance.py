@@ -128,7 +128,14 @@ def readings(
 ) -> list[str]:
     """The other texts to read for ``line``, best first (module docstring); ``verbs``: the
     kinds of word that begin a command (``Grammar.verb_kinds``); ``lemmas``: a word's base
-    forms as a verb (inflection.py ``verb_lemmas``; none by default). Empty when there is none."""
+    forms as a verb (inflection.py ``verb_lemmas``; none by default). Empty when there is none,
+    and for a line that tells of the robot doing something (:func:`_told_of_you`)."""
+    return [] if _told_of_you(tag(line), verbs, lemmas) else _readings(line, tag, verbs, lemmas)
+
+
+def _readings(
+    line: str, tag: Tagger, verbs: frozenset[str], lemmas: Callable[[str], tuple[str, ...]]
+) -> list[str]:
     out: list[str] = []
 
     def add(text: str) -> None:
@@ -162,6 +169,21 @@ def readings(
     return out[:MAX_READINGS]
 
 
+def _told_of_you(
+    words: tuple[Word, ...], verbs: frozenset[str], lemmas: Callable[[str], tuple[str, ...]]
+) -> bool:
+    """Whether ``words`` tell of the robot doing something rather than ask it: a verb a_hi does
+    not know, then "you", then a command's verb ("I'm watching you pour the jar …", "I saw you
+    bring …"): no other reading may leave the words before "you" out."""
+    return any(
+        words[i].kind == "W_YOU"
+        and words[i + 1].kind in verbs
+        and words[i - 1].kind == "WORD"
+        and bool(lemmas(words[i - 1].text))
+        for i in range(1, len(words) - 1)
+    )
+
+
 UNKNOWN_THING_BEFORE = frozenset({"DET", "ADJ", "POSS", "OF"})
 """Kinds of word after which an unknown word names a thing a_hi does not know ("the school")."""
 ACTED_ON = frozenset({"DET", "NOUN", "PLURAL", "CONTENTS", "IT", "ME", "ONE", "ADJ", "EVERYTHING"})
@@ -170,11 +192,12 @@ is "next" before "to": see :func:`_harmless`)."""
 
 
 def without_unknown(line: str, tag: Tagger, verbs: frozenset[str]) -> str:
-    """``line`` without the words a_hi does not know, when each is harmless (:func:`_harmless`)
-    and the line asks for one task with no negation, condition or question word first ("could
-    you kindly just pour the beans into the bowl real quick mate"); else ``line``."""
+    """``line`` without the words a_hi does not know, when each is harmless (:func:`_harmless`),
+    none ends the line (it may say how soon) and the line asks for one task with no negation,
+    condition or question word first ("could you kindly just pour the beans into the bowl real
+    quick mate"); else ``line``."""
     words = tag(line)
-    if not _plain_request(line, words, verbs):
+    if not _plain_request(line, words, verbs) or words[-1].kind == "WORD":  # "… sharp sharp": how, maybe when
         return line
     if not all(_harmless(words, i) for i, w in enumerate(words) if w.kind == "WORD"):
         return line
@@ -575,9 +598,11 @@ FOLLOW_UP = frozenset({"then", "also", "next", "and", "afterwards"})
 """Words that begin another request."""
 
 
-OBJECT_SHAPES = frozenset({"DET", "IT", "ME", "NOUN", "PLURAL", "ONE", "EVERYTHING", "CONTENTS", "W_YOU"})
+OBJECT_SHAPES = frozenset(
+    {"DET", "IT", "ME", "NOUN", "PLURAL", "ONE", "EVERYTHING", "CONTENTS", "W_YOU", "THAT"}
+)
 """Kinds of word that may follow an imperative verb as its object ("burn the house", "feed
-it", "tell me")."""
+it", "tell me", "speedrun this")."""
 
 
 def _timed(word: Word) -> bool:
@@ -622,7 +647,8 @@ def _droppable_after(clause: str, tag: Tagger, verbs: frozenset[str]) -> bool:
     "it" and a negation of something else may stand in it ("…, I can't see it anywhere")."""
     words = tag(clause)
     keeps = any(w.kind in AFTER_KEEPS or w.kind in verbs or _timed(w) for w in words)
-    return not _looks_like_request(words) and not keeps
+    offered = bool(words) and words[0].words[0] == "or"  # "…, or maybe not": another choice
+    return not _looks_like_request(words) and not keeps and not offered
 
 
 def kept_clauses(line: str, tag: Tagger, verbs: frozenset[str]) -> list[str]:
