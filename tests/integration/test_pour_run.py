@@ -470,7 +470,10 @@ def test_an_answer_recorded_before_its_question_is_fed_after_it(pour_run: PourRu
     order, ask, answer = answer_before_its_cause(messages, "a_co", "a_pl", "a_km")
     at = [(ask if m is answer else m).rec.t - STARTED for m in order]  # the run's clock: reply-by
     traffic = [(t, m.comm) for t, m in zip(at, order, strict=True) if m.comm is not None]
-    moved = write_recorded_run(tmp_path / "run", traffic)
+    # each keeps its publisher's stamp: the recorder may see an answer after the question it
+    # caused (agents linked directly), and the replay orders by what each sender had sent
+    sent = [None if m.rec.t_sent is None else m.rec.t_sent - STARTED for m in order if m.comm is not None]
+    moved = write_recorded_run(tmp_path / "run", traffic, sent=sent)
     result = replay(moved, "a_pl")
     assert result.equal, render(result)
     unordered = replay(moved, "a_pl", causal=False)
