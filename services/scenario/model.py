@@ -22,7 +22,7 @@ observation: the default of the first step), ``renewed`` (a_ta has renewed a_km'
 power-cycled robot's kitchen: a C6 ``WorldUpdate`` that ``renews``), ``seconds`` (wall
 seconds after the step before ran); with no trigger a step runs right after the one before. A
 trigger may add ``delay_s`` (wall seconds to wait once it holds, e.g. ``after = { step =
-"tilt", delay_s = 1.3 }`` to act half-way through the tilt).
+"tilt_pour/tilt", delay_s = 0.3 }`` to act half-way through the tilt).
 A ``say`` step's ``from`` says who says it: ``"person"`` (the default: the line a person types,
 on a_hi's human input) or ``"gateway"`` (an agent of another FIPA platform: a fipa-request of a
 ``Sentence`` posted to a_hi through the fleet's ACL gateway, C8, which the run then starts:
