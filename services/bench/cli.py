@@ -50,7 +50,8 @@ from services.bench.setup_check import SetupRefused
 from shared.settings import Settings
 
 if TYPE_CHECKING:
-    from services.bench import jade, report
+    from services.bench import falls, jade, report
+    from services.bench.messaging import MessagingSummary
 
 PARTS = (
     "codec",
@@ -159,17 +160,42 @@ class _Bench:
         from services.bench import messaging, report, spade
 
         n = self.counts
+        before = self.recorded_ratios() if "messaging" in self.chosen else None
         got = self.ran(
             "messaging",
             lambda: messaging.messaging(n.rounds, n.round_trips, n.communicates, n.content_bytes),
             timed=True,
         )
+        if got is not None and before is not None:
+            self.notice_falls(before, got.summary)
         sp = self.ran(
             "spade", lambda: spade.measure(n.spade_round_trips, n.spade_messages, n.content_bytes), timed=True
         )
         jd = self.jade_part()
         if got is not None or sp is not None or jd is not None:
             self.emit(report.messaging_section(got, sp, jd, n), report.verdict_lines(got, sp))
+
+    @staticmethod
+    def recorded_ratios() -> falls.Ratios | None:
+        """The messaging ratios of the run docs/benchmarks.md holds (services/bench/falls.py),
+        read before this run overwrites it; None, said in one line, when it holds none."""
+        from services.bench import falls
+
+        try:
+            return falls.recorded(ROOT)
+        except falls.FiguresError as exc:
+            typer.echo(f"roco bench: no recorded ratios to compare with: {exc}", err=True)
+            return None
+
+    def notice_falls(self, before: falls.Ratios, now: MessagingSummary) -> None:
+        """Print this run's ratios beside the recorded ones, and a warning line per fall."""
+        from services.bench import falls
+
+        ratios = falls.Ratios.of(now)
+        typer.echo(falls.compared(before, ratios), err=True)
+        for line in falls.falls(before, ratios):
+            typer.echo(line, err=True)
+            self.conditions.append(line.removeprefix("roco bench: "))
 
     def jade_part(self) -> jade.JadeFigures | None:
         """The jade part's figures; when a prerequisite is missing, one line saying which and
