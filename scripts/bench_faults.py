@@ -31,7 +31,8 @@ sys.path.insert(0, str(ROOT))
 from services.fleet.launcher import free_port  # noqa: E402
 from services.runtime import keys  # noqa: E402
 from services.runtime.faults import FaultSettings, FaultyTransport, MessageFaults  # noqa: E402
-from services.runtime.transport import AliveCallback, Callback, ZenohTransport, router_config  # noqa: E402
+from services.runtime.transport import AliveCallback, Callback, ZenohTransport  # noqa: E402
+from services.runtime.zenoh_config import router_config  # noqa: E402
 from shared.fipa_codec import Performative, encode  # noqa: E402
 from tests.support.messages import communicate  # noqa: E402
 

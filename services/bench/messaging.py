@@ -25,7 +25,7 @@ the interface and the content schema, the agent's input queue and FSM step.
   all have that step's stamp).
 
 **raw Zenoh**: two more Python processes with a bare session each, configured as an agent's
-(:func:`~services.runtime.transport.member_config`: same router, links and, on a secure
+(:func:`~services.runtime.zenoh_config.member_config`: same router, links and, on a secure
 testbed, credentials): a ping-pong (``put`` on a key, the other process takes it from a
 subscriber's FIFO and ``put``s it back) and a throughput test (``put`` ``n`` payloads in a
 loop; the other side's thread counts them from its FIFO). The payload has the size of roco's
@@ -86,7 +86,7 @@ from services.bench.synthetic import (
 )
 from services.fleet.launcher import Fleet, free_port
 from services.runtime.polling import max_poll_us
-from services.runtime.transport import links_setting, one_hop
+from services.runtime.zenoh_config import links_setting, one_hop
 from shared.settings import Settings
 
 __all__ = [
@@ -746,7 +746,7 @@ class MessagingFigures:
     size: int
     links: str
     """``peer`` or ``router``: the path the sessions took (``ROCO_LINKS`` and
-    services/runtime/transport.py ``one_hop``; the same on both testbeds)."""
+    services/runtime/zenoh_config.py ``one_hop``; the same on both testbeds)."""
 
     @property
     def summary(self) -> MessagingSummary:

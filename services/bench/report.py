@@ -44,7 +44,7 @@ from services.bench.parts import (
 from services.bench.quiet import quiet_rule
 from services.bench.spade import SpadeFigures
 from services.runtime.human import MAX_LINE_CHARS
-from services.runtime.transport import links_setting
+from services.runtime.zenoh_config import links_setting
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("eclipse-zenoh", "msgspec", "mujoco", "pin", "pyoxigraph", "gtpyhop-core")

@@ -30,7 +30,8 @@ from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Arc, Behaviour
 from services.runtime.polling import AdaptivePoll
 from services.runtime.protocol_state import ONTOLOGY
-from services.runtime.transport import RECEIVE_QUEUE, Transport, ZenohTransport, member_config
+from services.runtime.transport import RECEIVE_QUEUE, Transport, ZenohTransport
+from services.runtime.zenoh_config import member_config
 from services.security.context import ENV_SECURITY
 from services.security.context import register as register_credentials
 from services.spec.model import (
@@ -465,7 +466,7 @@ def serve(
 # ------------------------------------------------------------------------------- raw Zenoh
 def raw_process(role: str, k: int, endpoint: str, conn: Connection, security: str | None = None) -> None:
     """Body of one bare-Zenoh process (spawned), with the configuration of an agent's session
-    (:func:`~services.runtime.transport.member_config`: the same links, and with ``security``,
+    (:func:`~services.runtime.zenoh_config.member_config`: the same links, and with ``security``,
     the credentials folder, the same mutual TLS, password and access control), connected as
     :func:`raw_names` ``(k)`` on the keys :func:`raw_keys` ``(k)``. ``role`` "echo": puts
     every ping back, or counts them while armed for a stream; "pinger": does the ping-pong

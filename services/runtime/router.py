@@ -33,7 +33,7 @@ from types import FrameType
 
 from services.runtime.refusal_watch import answer_counters, watch_refusals
 from services.runtime.refusals import RefusalLog
-from services.runtime.transport import open_session, router_config
+from services.runtime.zenoh_config import open_session, router_config
 from services.runtime.zenoh_log import capture_zenoh_log
 from shared.ready_file import clear as clear_ready
 from shared.ready_file import mark as mark_ready

@@ -14,7 +14,7 @@ from pathlib import Path
 import zenoh
 
 from services.runtime import keys
-from services.runtime.transport import client_config, open_session
+from services.runtime.zenoh_config import client_config, open_session
 from services.security.context import ENV_SECURITY, identity_name, register, security_for
 from services.security.folder import CredentialError
 
@@ -34,7 +34,7 @@ def open_client(
     """A Zenoh client session for tools (CLI, tests), authenticated as ``identity`` (default
     ``operator``) when the fleet at ``endpoint`` has access control. Raises zenoh.ZError when
     no router answers (or it refuses the credentials); ValueError for a ``ZENOH_RUNTIME`` Zenoh
-    cannot read (services/runtime/transport.py ``open_session``)."""
+    cannot read (services/runtime/zenoh_config.py ``open_session``)."""
     return open_session(client_config([endpoint], wait_for_router=wait_for_router, identity=identity))
 
 

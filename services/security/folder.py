@@ -3,7 +3,7 @@ from it to connect: its :class:`Identity` and the router's password dictionary.
 
 A client reads ``ca.pem`` and its own ``<id>/`` (:func:`identity`), all that a container of
 deploy/compose.yaml mounts (services/deploy/compose.py); a one-hop peer of a local fleet also
-reads ``acl.json`` and ``passwords.txt`` (services/runtime/transport.py ``one_hop``).
+reads ``acl.json`` and ``passwords.txt`` (services/runtime/zenoh_config.py ``one_hop``).
 
 Kept apart from issuing (certs.py, which needs the ``cryptography`` package: ≈ 11 MiB resident
 with OpenSSL) so that every agent, the recorder and the router, which only read the folder,

@@ -122,7 +122,7 @@ def test_a_session_with_credentials_does_not_load_the_certificate_library(tmp_pa
     code = (
         "import json, sys\n"
         "from pathlib import Path\n"
-        "from services.runtime.transport import client_config\n"
+        "from services.runtime.zenoh_config import client_config\n"
         f"client_config(['tls/127.0.0.1:7447'], identity='a_co', security=Path({str(tmp_path)!r}))\n"
         "print(json.dumps([n for n in ('cryptography', 'rdflib') if n in sys.modules]))\n"
     )

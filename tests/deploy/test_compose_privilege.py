@@ -15,7 +15,7 @@ import pytest
 
 from services.deploy.compose import CERTS_HOST, CERTS_IN, COMPOSE_FILE, MESH_IDENTITY
 from services.deploy.deploy import issue_router, prepare
-from services.runtime.transport import client_config, router_config
+from services.runtime.zenoh_config import client_config, router_config
 from services.security import certs
 from services.spec.model import default_spec
 

@@ -16,13 +16,8 @@ import zenoh
 
 from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
-from services.runtime.transport import (
-    ZenohTransport,
-    member_config,
-    one_hop,
-    open_session,
-    peer_access_control,
-)
+from services.runtime.transport import ZenohTransport
+from services.runtime.zenoh_config import member_config, one_hop, open_session, peer_access_control
 from services.security import certs
 from tests.support.router import router_fleet
 
@@ -255,7 +250,7 @@ def test_the_routers_link_may_carry_every_kind_of_message_the_acl_names() -> Non
     the ACL generator above it); the list is the generator's ``Message``."""
     import typing
 
-    from services.runtime.transport import ACL_MESSAGES
+    from services.runtime.zenoh_config import ACL_MESSAGES
     from services.spec_check.acl import Message
 
     assert set(ACL_MESSAGES) == set(typing.get_args(Message))

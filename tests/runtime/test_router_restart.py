@@ -25,7 +25,8 @@ import zenoh
 from services.fleet.launcher import Fleet, free_port
 from services.runtime import keys
 from services.runtime.session import alive_agents
-from services.runtime.transport import CONNECT_RETRY, ZenohTransport, client_config
+from services.runtime.transport import ZenohTransport
+from services.runtime.zenoh_config import CONNECT_RETRY, client_config
 from shared.fipa_codec import AgentIdentifier, Communicate, Performative, decode, encode
 from shared.fipa_codec.languages import decode_content, encode_content
 from shared.fipa_codec.languages.l_hfsm import GroundTaskNetwork, HierarchicalPlan, TaskAtom

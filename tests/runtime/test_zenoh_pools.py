@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from services.fleet.launcher import Fleet, free_port
-from services.runtime.transport import (
+from services.runtime.zenoh_config import (
     ENV_RUNTIME,
     RUNTIME_POOLS,
     client_config,
