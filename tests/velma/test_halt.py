@@ -1,5 +1,5 @@
 """A cancel halts the running command (velma/executor/loop.py ``ControlLoop.cancel``,
-velma/executor/primitives.py ``HaltPrimitive``): a queued one ends at once, a running motion
+velma/executor/halt.py ``HaltPrimitive``): a queued one ends at once, a running motion
 brakes to rest within a bounded distance, a second cancel changes nothing, an ended command
 cannot be cancelled; and a pour halted at any moment spills nothing — every sphere of the
 jar's content ends in the jar or in the bowl, the jar upright in the hand. A hold (ag_ex lost
@@ -32,10 +32,11 @@ from shared.fipa_codec.languages.l_ex import (
     Wait,
 )
 from shared.fipa_codec.languages.l_sd import Observation
+from velma.control.trajectory import MIN_JERK_PEAK_RATE
 from velma.executor import checkpoint as ck
 from velma.executor.capture import WorldCapture
+from velma.executor.halt import HALT_LINEAR_DECEL, POUR_POINT, HaltPrimitive
 from velma.executor.loop import ControlLoop
-from velma.executor.primitives import HALT_LINEAR_DECEL, MIN_JERK_PEAK_RATE, POUR_POINT, HaltPrimitive
 from velma.executor.runtime import Runtime
 from velma.rotations import quat_wxyz
 from velma.scenario import SHORT_MOVE, pour_script

@@ -20,7 +20,7 @@ once, with Velma's safe-mode gains. The loop holds until the next command arrive
 Cancelling (``cancel``; a_ta's FIPA cancel of the request, SC00026 §2, paper §3.2 safe
 interruption): a command queued behind another is dropped and ends at once with ``halted``
 (L_EX ``HALTED``); the running one — or the next one when none runs — is replaced, in the
-cycle the cancel arrives, by a ``HaltPrimitive`` (velma/executor/primitives.py), which brings
+cycle the cancel arrives, by a ``HaltPrimitive`` (velma/executor/halt.py), which brings
 the commanded motion to rest (mid-pour it turns the jar upright; past the point where the
 content leaves the jar, after the tilt's end) and ends the command with ``halted``. A cancel
 adds no work to the cycle: the host hands it over with the other commands, and the halt is
@@ -38,7 +38,8 @@ import numpy as np
 
 from shared.fipa_codec.languages.l_ex import HALTED, CommandResult, ExecutorCommand, command_name
 from velma.control.joints import SIDES
-from velma.executor.primitives import HaltPrimitive, Primitive, Result, make_primitive
+from velma.executor.halt import HaltPrimitive
+from velma.executor.primitives import Primitive, Result, make_primitive
 from velma.executor.runtime import Runtime
 
 T = TypeVar("T")

@@ -164,7 +164,7 @@ class Runtime:
         """Per arm, the unit axis (3,) and the pivot (3,, m; world) of the Tilt that last
         turned what it holds, until a MoveTool of that arm or a MoveJoints of it or of the
         torso: a halt turns a tilted held object upright about them
-        (velma/executor/primitives.py ``HaltPrimitive``). Not in a checkpoint."""
+        (velma/executor/halt.py ``HaltPrimitive``). Not in a checkpoint."""
         self.upright_posture: dict[str, Array | None] = {s: None for s in SIDES}
         """Per arm, the null-space posture (7,, rad: the measured joints) it had when a Tilt
         began to lean what it holds from upright; read only while ``tilt_about`` is set (a
