@@ -57,7 +57,7 @@ def run_alone(
     ``subscribed``: one); returns timing and outcome."""
     from shared.fipa_codec.languages.l_ex import CommandResult
     from velma.executor import ExecutorProcess
-    from velma.executor.process import DEFAULT_SPIN
+    from velma.executor.loop_wire import DEFAULT_SPIN
     from velma.scenario import run_pour
 
     ex = ExecutorProcess(
@@ -174,7 +174,7 @@ def _fixed_work(reps: int, a: np.ndarray, out: np.ndarray) -> None:
 def _baseline_child(seconds: float, work_us: float, out: multiprocessing.queues.Queue[bytes]) -> None:
     """In a spawned process: the loop's real-time setup (enter_realtime, Pacer, spin,
     DeadlineMonitor) around a fixed calculation calibrated to ≈ ``work_us`` per cycle."""
-    from velma.executor.process import DEFAULT_SPIN, DT
+    from velma.executor.loop_wire import DEFAULT_SPIN, DT
     from velma.executor.timing import DeadlineMonitor, Pacer, enter_realtime
 
     a = np.random.default_rng(0).standard_normal((48, 48))

@@ -11,7 +11,7 @@ services/viewer/robot.py):
   the image as JPEG (``EncodedImage``, quality ``JPEG_QUALITY``, ≈ 8–10 kB).
 
 Never on the control loop's path: the loop process only copies its ``qpos`` into shared
-memory every ``WORLD_PERIOD`` cycles (velma.executor.process, ``world_state=True``); this
+memory every ``WORLD_PERIOD`` cycles (velma/executor/loop_process.py, ``world_state=True``); this
 thread, in the other process, reads the latest copy, puts it into an MjData of its own
 (``velma.render.SceneCamera``: the same kitchen model, one reused renderer, closed when the
 thread ends) and renders. The thread runs at the lowest CPU priority (nice ``NICE``, this
@@ -41,7 +41,7 @@ from services.viewer.robot import SIM, WALL
 
 if TYPE_CHECKING:
     from services.viewer.recording import Recording
-    from velma.executor.process import WorldState
+    from velma.executor.loop_wire import WorldState
     from velma.render import SceneCamera
 
 ENTITY = "world/robot/head_camera"

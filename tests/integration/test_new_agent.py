@@ -253,7 +253,7 @@ def knocked_at_robot_time(run_dir: Path) -> float:
 
 
 STATE_MARGIN_S = 0.02
-"""Robot s a robot state may be old when read (velma/executor/process.py ``STATE_PERIOD``: 20
+"""Robot s a robot state may be old when read (velma/executor/loop_wire.py ``STATE_PERIOD``: 20
 cycles of 1 ms)."""
 
 

@@ -24,7 +24,7 @@ from shared.fipa_codec.languages.common import Pose
 from tests.support.machine import needs_gl
 from tests.support.rerun_run import rerun_run_dir
 from tests.viewer.test_recording import rows
-from velma.executor.process import WorldState
+from velma.executor.loop_wire import WorldState
 from velma.executor.state import RobotSnapshot
 from velma.executor.timing import TimingStats
 

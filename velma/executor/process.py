@@ -1,6 +1,7 @@
-"""ag_ex's hard-timing executor: the 1 kHz control loop in a process of its own (paper §5.3),
-connected to the communication side only through lock-free bounded hand-offs in shared
-memory (velma.executor.handoff).
+"""ag_ex's hard-timing executor, its communication side: ``ExecutorProcess`` starts the 1 kHz
+control loop in a process of its own (paper §5.3; velma/executor/loop_process.py) and talks to
+it only through lock-free bounded hand-offs in shared memory (velma.executor.handoff), whose
+messages, blocks and constants are in velma/executor/loop_wire.py.
 
 Why a process: in one Python process the loop thread shares the interpreter lock with Zenoh's
 callback threads and the agent's behaviours; a thread switch can hold the loop for the whole
@@ -55,25 +56,20 @@ every open command with ``failure``.
 from __future__ import annotations
 
 import collections
-import contextlib
-import gc
 import itertools
 import logging
 import multiprocessing
 import multiprocessing.connection
 import os
-import signal
 import threading
 import time
 from collections.abc import Callable
 from multiprocessing import shared_memory
-from typing import NamedTuple
 
 import msgspec
 import numpy as np
-import numpy.typing as npt
 
-from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_decoder, command_name
+from shared.fipa_codec.languages.l_ex import CommandResult, ExecutorCommand, command_name
 from shared.fipa_codec.languages.l_sd import Observation
 from shared.settings import Settings
 from velma.executor.camera_process import CameraProcess, CameraSpec
@@ -82,32 +78,41 @@ from velma.executor.capture import WorldCapture, perception_mode
 from velma.executor.delivery import RecordSink, ResultDelivery
 from velma.executor.handoff import LatestValue, SpscRing, new_block, remove_orphans, shared_view
 from velma.executor.ledger import STOPPED, outcome_of
+from velma.executor.loop_process import loop_main
+from velma.executor.loop_wire import (
+    DEFAULT_SPIN,
+    DT,
+    LOOP_PROCESS_NAME,
+    SLOT_SIZE,
+    SLOTS,
+    START,
+    START_TIMEOUT,
+    STATE_CAPACITY,
+    TIMING_REFRESH,
+    WORLD_CAPACITY,
+    Cancel,
+    Displace,
+    Done,
+    FromLoop,
+    Halting,
+    Hold,
+    LoopConfig,
+    Pace,
+    Ready,
+    Safe,
+    Shutdown,
+    Started,
+    Submit,
+    WorldState,
+)
 from velma.executor.state import RobotSnapshot, snapshot_of
 from velma.executor.state_block import StateReader
-from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, Pacer, RealtimeSetup, TimingStats
+from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, RealtimeSetup, TimingStats
 from velma.executor.watch import Watcher, check_period
 from velma.world.link import LinkError, RobotLink
 from velma.world.timing import WorldTiming
 
 log = logging.getLogger(__name__)
-
-LOOP_PROCESS_NAME = "velma-loop"
-"""The loop process's name in ``ps``, ``top`` and ``/proc/<pid>/comm`` (``name_process``)."""
-
-DT = 0.001  # s (velma.executor.runtime.DT; repeated so that this module imports no MuJoCo)
-SLOTS = 64  # messages per ring
-SLOT_SIZE = 65536  # B per message (an L_SD Observation of the kitchen is ≈ 3 KiB)
-STATE_CAPACITY = 65536  # B
-STATE_PERIOD = 20  # cycles between robot-state publications (50 Hz)
-STATE_PHASE = 3  # … in cycles 3, 23, 43…: not in those of the hands' contact scans (0, 5 mod 10)
-INBOX_PER_CYCLE = 4  # messages taken from the command ring per cycle
-PARENT_CHECK = 1000  # cycles between checks that the parent process still exists
-DEFAULT_SPIN = 0.0003  # s before each release time that the real-time loop busy-waits instead of sleeping
-TIMING_REFRESH = 1.0  # s between recomputations of the timing attached to snapshots
-WORLD_PERIOD = 20  # cycles between world-state writes (50 Hz), when asked for (a watch frame's age)
-WORLD_PHASE = 13  # … in cycles 13, 33…: neither a state publication nor a contact scan
-WORLD_CAPACITY = 65536  # B: sim time + qpos of up to 8 190 coordinates (the kitchen has 180)
-START_TIMEOUT = 120.0  # s for the loop process to build the scene and report Ready
 
 OnDone = Callable[[CommandResult | Observation], None]
 OnFrame = Callable[[Observation], None]
@@ -120,311 +125,6 @@ OnEnd = Callable[[int, str, float, str, CommandResult | Observation | WorldCaptu
 """``(token, command name, sim_time s, outcome, result)`` of a command the loop ended (velma/
 executor/ledger.py ``outcome_of``; ``result``: the loop's own, an Observe's WorldCapture before
 it is rendered)."""
-
-
-class WorldState(NamedTuple):
-    """The whole simulation state needed to draw the scene: ``sim_time`` (s) and MuJoCo's
-    ``qpos`` (shape ``(model.nq,)``, float64: the robot's joints, the free objects' and
-    particles' positions and unit quaternions)."""
-
-    sim_time: float
-    qpos: npt.NDArray[np.float64]
-
-
-# ---------------------------------------------------------------------- wire messages
-class Submit(msgspec.Struct, frozen=True, tag="submit"):
-    """Run the L_EX command ``name`` whose msgpack bytes are ``command``; its result comes back
-    as ``Done`` with the same ``token``. The loop decodes the command with the commands its own
-    process knows (L_EX ``COMMANDS``, ``command_decoder``), not a fixed union: a command added
-    with ``add_command`` reaches it as the built-in ones do (docs/executor.md, "Adding a robot
-    primitive")."""
-
-    token: int
-    name: str
-    command: msgspec.Raw
-
-
-class Cancel(msgspec.Struct, frozen=True, tag="cancel"):
-    """Halt the command submitted with ``token`` (velma.executor.loop ``ControlLoop.cancel``):
-    queued, it ends at once; running, it is brought to rest and ends; either way its ``Done``
-    says ``halted``. Nothing when it has ended already."""
-
-    token: int
-
-
-class Hold(msgspec.Struct, frozen=True, tag="hold"):
-    """Hold position in joint impedance (velma.executor.loop), because ``why``."""
-
-    why: str
-
-
-class Safe(msgspec.Struct, frozen=True, tag="safe"):
-    """Enter safe mode (velma.executor.loop), because ``why``."""
-
-    why: str
-
-
-class Displace(msgspec.Struct, frozen=True, tag="displace"):
-    """Move free body ``body`` by ``delta`` (world, m) and tilt it by ``tilt`` (rad, about
-    world x): a disturbance of the simulated world (velma.executor.runtime.Runtime.displace)."""
-
-    body: str
-    delta: tuple[float, float, float]
-    tilt: float = 0.0
-
-
-class Pace(msgspec.Struct, frozen=True, tag="pace"):
-    """Pace the loop to at most ``factor`` × wall time (``Pacer.pace``, velma/executor/timing.py;
-    the watch's pace); 0: the pacing it started with."""
-
-    factor: float = 0.0
-
-
-class Shutdown(msgspec.Struct, frozen=True, tag="shutdown"):
-    """End the loop process (open commands end with ``stopped``)."""
-
-
-class Ready(msgspec.Struct, frozen=True, tag="ready"):
-    """The loop runs in process ``pid`` with ``setup`` (SCHED_FIFO? pinned?)."""
-
-    pid: int
-    setup: RealtimeSetup
-    control_law: str = ""
-    plant: str = ""
-
-
-class Done(msgspec.Struct, frozen=True, tag="done"):
-    """The result of the command submitted with ``token``."""
-
-    token: int
-    result: CommandResult | Observation | WorldCapture
-
-
-class Started(msgspec.Struct, frozen=True, tag="started"):
-    """The loop started the command submitted with ``token`` (L_EX name ``command``) in the
-    cycle at ``sim_time`` (s): its motion primitive began (velma/executor/loop.py
-    ``ControlLoop.started``)."""
-
-    token: int
-    command: str
-    sim_time: float
-
-
-class Halting(msgspec.Struct, frozen=True, tag="halting"):
-    """The loop began to halt the running command ``command`` submitted with ``token`` in the
-    cycle at ``wall_time`` (POSIX s, the loop's clock) and ``sim_time`` (s): from that cycle on
-    its setpoints brake to rest (the halt event; its ``Done`` follows once at rest)."""
-
-    token: int
-    command: str
-    wall_time: float
-    sim_time: float
-
-
-class Fault(msgspec.Struct, frozen=True, tag="fault"):
-    """A motion primitive raised (``text``) while running ``command``; it was answered with a
-    failure and the loop went on. Logged by the communication side. With ``command`` ``START``
-    the loop could not start (``text`` says why) and its process exits."""
-
-    command: str
-    text: str
-
-
-START = "start"
-"""``Fault.command`` of a loop that could not start."""
-
-ToLoop = Submit | Cancel | Hold | Safe | Displace | Pace | Shutdown
-FromLoop = Ready | Started | Done | Halting | Fault
-
-
-class LoopConfig(msgspec.Struct, frozen=True, kw_only=True):
-    """What the loop process needs: pacing, scene seed, and the names of the shared blocks."""
-
-    realtime: bool
-    seed: int
-    pose_seed: int | None
-    realtime_priority: bool
-    spin: float
-    cpu: int | None
-    pin: bool
-    commands: str
-    results: str
-    state: str
-    state_names: str
-    monitor: str
-    window: int
-    parent_pid: int
-    world: str = ""  # the world-state block ("": not published)
-    camera: bool = True  # Observe ends with a WorldCapture (False: ground truth, ROCO_PERCEPTION=truth)
-    world_link: str = ""  # the robot link of a world process to control ("": the physics runs here)
-
-
-# ---------------------------------------------------------------------- loop process side
-def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) -> None:
-    """Entry point of the loop process (started with spawn by ``ExecutorProcess``)."""
-    from velma.gl import never_renders
-
-    never_renders()  # the loop renders nothing (the head camera's process does): no GL platform
-    from velma.executor.loop import ControlLoop
-    from velma.executor.runtime import Runtime
-    from velma.executor.state_block import StateWriter
-    from velma.executor.timing import enter_realtime, name_process
-    from velma.world.link import RobotLink
-
-    name_process(LOOP_PROCESS_NAME)
-    cfg = msgspec.msgpack.decode(config, type=LoopConfig)
-    inbox = SpscRing.attach(cfg.commands, SLOTS, SLOT_SIZE)
-    outbox_ring = SpscRing.attach(cfg.results, SLOTS, SLOT_SIZE)
-    state = LatestValue.attach(cfg.state, STATE_CAPACITY)
-    state_names = LatestValue.attach(cfg.state_names, STATE_CAPACITY)
-    world = LatestValue.attach(cfg.world, WORLD_CAPACITY) if cfg.world else None
-    mon_shm = shared_memory.SharedMemory(name=cfg.monitor)
-    monitor = DeadlineMonitor(DT, realtime=cfg.realtime, window=cfg.window, buffer=shared_view(mon_shm))
-    bell = doorbell.fileno()
-    os.set_blocking(bell, False)
-    encode = msgspec.msgpack.Encoder().encode
-    decode = msgspec.msgpack.Decoder(ToLoop).decode
-    read_command = command_decoder()
-
-    try:
-        link = RobotLink.attach(cfg.world_link) if cfg.world_link else None
-        rt = Runtime(seed=cfg.seed, pose_seed=cfg.pose_seed, link=link)
-    except Exception as exc:  # say why before the process exits: ExecutorProcess.start raises it
-        outbox_ring.push(encode(Fault(command=START, text=f"{type(exc).__name__}: {exc}")))
-        with contextlib.suppress(BlockingIOError, BrokenPipeError):
-            os.write(bell, b"\x01")
-        raise
-    rt.observe_by_camera = cfg.camera
-    loop: ControlLoop[int] = ControlLoop(rt)
-    running = True
-
-    def on_signal(_signum: int, _frame: object) -> None:
-        nonlocal running
-        running = False  # end after this cycle
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
-    if cfg.realtime and cfg.realtime_priority:
-        setup = enter_realtime(cpu=cfg.cpu, pin=cfg.pin)
-    else:
-        setup = RealtimeSetup(
-            policy="SCHED_OTHER",
-            priority=0,
-            cpus=tuple(sorted(os.sched_getaffinity(0))) if hasattr(os, "sched_getaffinity") else (),
-            pinned=False,
-            notes=("not requested",),
-        )
-    pending: collections.deque[bytes] = collections.deque()
-
-    def ring() -> None:
-        while pending and outbox_ring.push(pending[0]):
-            pending.popleft()
-        # a full pipe means the reader has a wake-up pending anyway; broken: the parent is gone
-        with contextlib.suppress(BlockingIOError, BrokenPipeError):
-            os.write(bell, b"\x01")
-
-    world_buf = np.zeros(1 + rt.model.nq)  # [sim_time, qpos…], reused
-    if world is not None and world_buf.nbytes > WORLD_CAPACITY - 4:
-        pending.append(encode(Fault(command="world state", text=f"nq={rt.model.nq} does not fit")))
-        world = None
-    from velma.control.compiled import law_name  # the loop's side only: it loads Pinocchio
-
-    pending.append(
-        encode(
-            Ready(
-                pid=os.getpid(),
-                setup=setup,
-                control_law=law_name(rt.ctrl),
-                plant=rt.plant_name,
-            )
-        )
-    )
-    publisher = StateWriter(rt, state, state_names)
-    publisher.publish(loop.holding)
-    ring()
-    # the scene and the controller are built: everything allocated so far lives for the whole
-    # run; freezing it keeps the collector's passes short (gc.freeze, Python ≥ 3.7)
-    gc.collect()
-    gc.freeze()
-
-    cycle = rt.cycles  # > 0 attached to a running world: the phases stay those of its contact scans
-    pacer = Pacer(DT, realtime=cfg.realtime and link is None, spin=cfg.spin)  # a world paces itself
-    while running:
-        start = pacer.begin()
-        cpu = time.thread_time()
-        for _ in range(INBOX_PER_CYCLE):
-            raw = inbox.pop()
-            if raw is None:
-                break
-            msg = decode(raw)
-            if isinstance(msg, Submit):
-                try:
-                    loop.submit(msg.token, read_command(msg.command))
-                except msgspec.ValidationError:  # no row of COMMANDS in this process
-                    unknown = f"not an executor command in the loop's process: {msg.name}"
-                    failed = CommandResult(command=msg.name, ok=False, reason=unknown, sim_time=rt.time)
-                    pending.append(encode(Done(token=msg.token, result=failed)))
-            elif isinstance(msg, Cancel):
-                ended = loop.cancel(msg.token)
-                if ended == [] and loop.current is not None:  # it runs: the halt begins now
-                    name = command_name(loop.current[1])
-                    halt = Halting(token=msg.token, command=name, wall_time=time.time(), sim_time=rt.time)
-                    pending.append(encode(halt))
-                pending.extend(encode(Done(token=t, result=r)) for t, r in ended or ())
-            elif isinstance(msg, Hold):
-                pending.extend(encode(Done(token=t, result=r)) for t, r in loop.hold(msg.why))
-            elif isinstance(msg, Safe):
-                pending.extend(encode(Done(token=t, result=r)) for t, r in loop.safe(msg.why))
-            elif isinstance(msg, Displace):
-                try:
-                    loop.rt.displace(msg.body, msg.delta, msg.tilt)
-                except (KeyError, ValueError) as exc:
-                    pending.append(encode(Fault(command="displace", text=str(exc))))
-            elif isinstance(msg, Pace):
-                try:
-                    pacer.pace(msg.factor or None)
-                except ValueError as exc:
-                    pending.append(encode(Fault(command="pace", text=str(exc))))
-            else:
-                running = False
-        done = loop.cycle()
-        while loop.started:  # after the control step, like the results
-            token, name, at = loop.started.popleft()
-            pending.append(encode(Started(token=token, command=name, sim_time=at)))
-        if done is not None:
-            pending.append(encode(Done(token=done[0], result=done[1])))
-        while loop.errors:
-            name, text = loop.errors.popleft()
-            pending.append(encode(Fault(command=name, text=text)))
-        if pending:
-            ring()
-        if cycle % STATE_PERIOD == STATE_PHASE:
-            publisher.publish(loop.holding)
-        if world is not None and cycle % WORLD_PERIOD == WORLD_PHASE:
-            world_buf[0] = rt.data.time
-            world_buf[1:] = rt.data.qpos
-            world.write(world_buf.tobytes())
-        if cycle % PARENT_CHECK == 0 and os.getppid() != cfg.parent_pid:
-            running = False  # orphaned: the communication side is gone
-        cycle += 1
-        cpu = time.thread_time() - cpu
-        end = time.perf_counter()
-        if link is not None:  # the world paces: the cycle's work is all but the wait for its state
-            start += rt.waited_s
-            monitor.record(start, start, end, rt.part_s, cpu)
-        else:
-            monitor.record(pacer.release, start, end, rt.part_s, cpu)
-        pacer.wait(rt.time)  # the simulation's time: paced while watched (Pacer.pace)
-    pending.extend(encode(Done(token=t, result=r)) for t, r in loop.abort(STOPPED))
-    ring()
-    del monitor
-    publisher.close()  # its plant holds a view of the state block
-    for block in (inbox, outbox_ring, state, state_names, world):
-        if block is not None:
-            block.close()
-    mon_shm.close()
-    if link is not None:
-        link.close()
 
 
 # ---------------------------------------------------------------------- communication side

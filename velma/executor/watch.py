@@ -35,7 +35,7 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.01
 """Wall seconds between two reads of the latest simulation state (the loop rewrites it every
-20 ms of robot time: velma/executor/process.py ``WORLD_PERIOD``)."""
+20 ms of robot time: velma/executor/loop_wire.py ``WORLD_PERIOD``)."""
 PERIOD_RANGE_S = (0.05, 60.0)
 """Accepted ``period_s`` (robot s) of a watch."""
 
