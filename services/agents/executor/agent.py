@@ -12,7 +12,7 @@ CommandResult ``halted`` (L_EX ``HALTED``) once the robot is at rest, or ``failu
 the command's own result when it ended before the halt began or the loop cannot be reached.
 
 Besides C5, ag_ex publishes ``RobotSnapshot`` (msgpack) on ``roco/state/ag_ex`` every
-``STATE_PERIOD`` s; writes ``<ROCO_RUN_DIR>/ag_ex_timing.json`` every ``TIMING_FILE_PERIOD`` s
+``STATE_PUBLISH_S`` s; writes ``<ROCO_RUN_DIR>/ag_ex_timing.json`` every ``TIMING_FILE_PERIOD`` s
 and at stop, ``ag_ex_perception.jsonl`` (each camera Observation beside the ground truth, for
 the report; ``ROCO_PERCEPTION=truth`` answers from the physics) and ``ag_ex_ledger.jsonl``
 (velma/executor/ledger.py: a request whose command ended in an earlier ag_ex is answered from
@@ -57,7 +57,9 @@ from velma.executor.ledger import LEDGER_FILE, Answer, Ledger, Recalled, recall
 from velma.world.files import LinkWatch
 from velma.world.mode import world_in_process
 
-STATE_PERIOD = 0.05  # s between robot-state publications (20 Hz)
+STATE_PUBLISH_S = 0.05
+"""s between robot-state publications on Zenoh (20 Hz); the loop writes the state it reads every
+``STATE_PERIOD`` cycles (velma/executor/loop_wire.py)."""
 TIMING_FILE_PERIOD = 5.0  # s between writes of ag_ex_timing.json
 TIMING_FILE = "ag_ex_timing.json"
 WORLD_WAIT_S = 120.0
@@ -128,7 +130,7 @@ class PeerChange:
 class ExecutorAgent(Agent):
     name = "ag_ex"
     ROLES = (participant(C5, FIPA_REQUEST, L_EX, L_SD), participant(C5, FIPA_SUBSCRIBE, L_EX, L_SD))
-    period = STATE_PERIOD
+    period = STATE_PUBLISH_S
 
     def make_executor(self) -> Any:
         """The hard-timing executor this agent serves: velma's loop in its own process, paced
@@ -570,7 +572,7 @@ class ExecutorAgent(Agent):
         self._watch_world()
         now = time.monotonic()
         if now >= self._next_state:
-            self._next_state = now + STATE_PERIOD
+            self._next_state = now + STATE_PUBLISH_S
             self._publish_state()
         if now >= self._next_timing_file:
             self._next_timing_file = now + TIMING_FILE_PERIOD
