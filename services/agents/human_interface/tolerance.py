@@ -25,29 +25,43 @@ grammar of commands, not of everything said around them).
    a courtesy word inside the command left out, "the" put before an object named bare, "to
    me" after the verb moved to the end; "you" before the verb left out ("please, you pour
    the beans …", "I need that you bring …"), "to" after "please" too; an object said before
-   its verb put after it ("the jar, please put on the table", "the bowl you put on table").
+   its verb put after it ("the jar, please put on the table", "the bowl you put on table");
+   the word of the verb's frame put between two bare objects ("pour(jar, bowl)"); a "me"
+   after a verb of pouring or putting left out ("pour me the beans in the bowl").
 5. **A reason, a beneficiary or a courtesy after the command** ("… for the kids", "… before
    the baby knocks it over", "… when you're done"): left out from the word that begins it
    (:data:`TAIL_OPENERS`) to the end, when what it holds names no object a_km knows, no verb,
-   stop, urgency or deadline, and no negation or condition (:data:`CONDITIONS`); a last
+   stop, urgency or deadline, and no negation or condition (:data:`CONDITIONS`); the same
+   for a remark begun by who speaks, said without a comma ("… pls my mom is coming"); a last
    "already" said in impatience too.
 6. **Terse commands without a verb** ("Bowl on table.", "Cup back in cabinet.", "Beans into
    the bowl, quick.", "Bowl to me, now!"): read with "put" before them when the line names a
    place (on, in, back, away), with "bring" when it says "to me" or "here", and is no question
-   ("?").
+   ("?"), or where to ("Beans to bowl.").
 7. **When, said apart** ("pour the jar into the bowl, I need it within a minute"): a clause
    that holds only a deadline or an urgency and words of a wish ("I need it") is joined to the
    command.
 8. **A wish with the verb after the thing** ("I need the beans poured into the bowl", "can you
    get the cup brought to me", "make the beans go in the bowl"): read as the command with the
    verb's base form first (inflection.py; "go" as "put"), when only words of a wish or courtesy
-   stand before the thing and the line holds no negation or condition.
+   stand before the thing, only modal words between ("the cup should be in the cabinet"), and
+   the line holds no negation or condition; a participle with no wish is said, not asked ("the
+   beans poured into the bowl").
+9. **Words a_hi does not know, left out** ("… real quick mate"), when the line asks for one
+   task with no negation, condition, stop or question word first, and each such word names no
+   thing (no determiner before it), acts on none (no object after it) and none ends the line.
+
+A line that tells of the robot doing something rather than asks ("I'm watching you pour the
+jar …": a verb a_hi does not know, "you", a command's verb) is read no other way.
 
 Before these, a line of several sentences (:func:`sentences`) is read as each one of them
 alone whose other sentences are asides: they hold no command word (a verb, a stop, an
 urgency, a deadline, a progress question) and, when they hold a negation, no object either
-("I'm so tired. Could you bring me the cup?", "I lost the bowl. Can you find it?"). "it" in the
-sentence read is the one object the asides name, if they name one ("find the bowl").
+("I'm so tired. Could you bring me the cup?", "I lost the bowl. Can you find it?"); the verbs
+of a question asked aloud, of what the person says of themselves ("I have a bowl here.") and
+of a word said after "is" ("The bowl is empty.") ask for nothing. "it" in the sentence read is
+the one object the asides name, "them" the one named in the plural, else the subject of the
+aside just before ("The cup is on the table. Put it back.").
 
 Each reading is read as a whole line is (language.py :func:`~.language.interpret`) and the
 first that gives an intent is taken; the intent says what was read (``read_as``: the line and
