@@ -12,12 +12,21 @@ Prints µs per round trip / per communicate (``time.perf_counter``); ``--profile
 cProfile's 30 most expensive functions of each instead (slower: figures then include the
 profiler's own cost).
 
+``--stages`` prints where a round trip's time goes, stage by stage: cProfile's own time of every
+function (its ``tottime``), each function given to the stage its module and name say
+(:data:`STAGES`: decoding, the received communicate's checks, admission, the protocol state,
+the duplicate filter, the replies awaited, routing to a role, the handler, the agent's
+elementary actions and hand-offs, sending, encoding, the put; a builtin's time goes to the
+stages of its callers), in µs per round trip and as a share. Run it with
+``ROCO_INTERPRETED=1``: a compiled module's functions have no Python frames for cProfile, and
+their time would land in their callers' stage (the script says when).
+
 ``--cpu`` prints CPU time (``time.process_time``) instead, the median and the least of
 ``--repeat`` runs, each after a full garbage collection (else one of the earlier runs'
 garbage lands in some runs, ≈ 15 ms each): steadier than wall time on a machine other jobs
 share (the way to compare two commits).
 
-Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile | --cpu [--repeat 9]]``
+Usage: ``python scripts/profile_runtime.py [--n 5000] [--profile | --stages | --cpu [--repeat 9]]``
 """
 
 from __future__ import annotations
@@ -151,6 +160,71 @@ def profiled(fn: Callable[[], object]) -> None:
     pstats.Stats(prof).sort_stats("tottime").print_stats(30)
 
 
+STAGES: tuple[tuple[str, str, str], ...] = (
+    ("decode", "shared/fipa_codec/", "decode"),
+    ("encode", "shared/fipa_codec/", "encode"),
+    ("codec, other", "shared/fipa_codec/", ""),
+    ("received: checks", "services/runtime/intake.py", ""),
+    ("received: admission", "services/runtime/admission.py", ""),
+    ("protocol state", "services/runtime/protocol_state.py", ""),
+    ("duplicate filter", "services/runtime/dedup.py", ""),
+    ("replies awaited", "services/runtime/replies.py", ""),
+    ("specification's answers", "services/runtime/lookups.py", ""),
+    ("routing to a role", "services/runtime/roles/", ""),
+    ("sending", "services/runtime/emission.py", ""),
+    ("elementary actions, hand-offs", "services/runtime/agent.py", ""),
+    ("behaviours", "services/runtime/behaviour.py", ""),
+    ("the handler (benchmark agents)", "services/bench/", ""),
+    ("the put (collecting transport)", "scripts/profile_runtime.py", "publish"),
+    ("this script's loop", "scripts/profile_runtime.py", ""),
+    ("decode", "~", "decode"),
+    ("encode", "~", "encode"),
+    ("msgspec, other", "~", "msgspec"),
+)
+"""(stage, module path part, function name part): a function goes to the first row whose path
+part is in its file's path and whose name part is in its name ("" matches any); the rest is
+"other" (the profile loop, Python's own)."""
+
+
+def stage_of(path: str, name: str) -> str:
+    """The stage of :data:`STAGES` a function of ``path`` named ``name`` belongs to."""
+    for stage, where, called in STAGES:
+        if where in path and called in name:
+            return stage
+    return "other"
+
+
+def stages(n: int) -> int:
+    """Print the stage table of ``n`` round trips (module docstring)."""
+    from services.runtime import native
+
+    loaded = (sys.modules.get(f"services.runtime.{m}") for m in native.COMPILED)
+    compiled = [m.__name__ for m in loaded if m is not None and str(m.__file__).endswith(".so")]
+    prof = cProfile.Profile()
+    prof.enable()
+    round_trips(n)
+    prof.disable()
+    by: dict[str, float] = {}
+    st = pstats.Stats(prof)
+    for (path, _line, name), row in st.stats.items():  # type: ignore[attr-defined]
+        own = stage_of(path, name)
+        if path != "~" or own != "other":
+            by[own] = by.get(own, 0.0) + row[2]
+            continue
+        for (cpath, _cline, cname), crow in row[4].items():  # a builtin: its time to its callers' stages
+            by[stage_of(cpath, cname)] = by.get(stage_of(cpath, cname), 0.0) + crow[2]
+    total = sum(by.values())
+    per = (n + WARMUP) / 1e6
+    print("| stage | µs per round trip (profiled) | share |")
+    print("|---|---:|---:|")
+    for stage, t in sorted(by.items(), key=lambda kv: -kv[1]):
+        print(f"| {stage} | {t / per:.1f} | {100 * t / total:.1f} % |")
+    print(f"| all | {total / per:.1f} | 100 % |")
+    if compiled:
+        print(f"(compiled, their time in their callers' stages: {', '.join(compiled)}; ROCO_INTERPRETED=1)")
+    return 0
+
+
 def main() -> int:
     """Print the figures (module docstring); exit 1 with one ``roco:`` line, and no figure,
     when the pair did not exchange what is timed or anything was refused or not understood
@@ -166,6 +240,7 @@ def _main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=5000)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--stages", action="store_true", help="a round trip's time by stage (ROCO_INTERPRETED=1)")
     ap.add_argument("--cpu", action="store_true", help="CPU time, median and least of --repeat runs")
     ap.add_argument("--repeat", type=int, default=9)
     args = ap.parse_args()
@@ -186,6 +261,8 @@ def _main() -> int:
         ):
             print(f"CPU per {label}: median {statistics.median(v):.1f} µs, least {min(v):.1f} µs")
         return 0
+    if args.stages:
+        return stages(args.n)
     if args.profile:
         profiled(lambda: round_trips(args.n))
         profiled(lambda: stream(args.n))

@@ -46,3 +46,21 @@ def test_profile_runtime_prints_no_figure_when_a_communicate_is_not_understood(
     assert code == 1 and out == ""
     assert len(err.splitlines()) == 1
     assert err.startswith("roco: profile_runtime: the pair's exchange was not the work timed: ")
+
+
+def test_the_stage_profile_gives_every_function_a_stage_and_says_what_was_compiled(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--stages``: the table's rows add up to its total, the round trip's own stages are there,
+    and the compiled modules whose time lands in their callers are named (here, in the test's
+    process, whichever are compiled)."""
+    code, out, err = _run(monkeypatch, capsys, "--stages", "--n", "100")
+    assert code == 0 and err == "", err
+    table = [r for r in out.splitlines() if r.startswith("| ") and not r.startswith("| stage")]
+    cells = [r.split("|")[1:3] for r in table]
+    rows = {name.strip(): float(us) for name, us in cells}
+    total = rows.pop("all")
+    assert abs(sum(rows.values()) - total) < 0.01 * total + 0.5
+    assert rows["elementary actions, hand-offs"] > 0 and rows["the handler (benchmark agents)"] > 0
+    assert profile_runtime.stage_of("/x/services/runtime/protocol_state.py", "step") == "protocol state"
+    assert profile_runtime.stage_of("~", "<method 'decode' of 'msgspec.msgpack.Decoder' objects>") == "decode"
