@@ -24,7 +24,7 @@ def test_every_library_scenario_parses_and_says_something() -> None:
         "tilt_interrupted",
     } <= set(scenarios)
     (fault_a_ta, fault_ag_ex) = scenarios["tilt_interrupted"].steps[1:]
-    assert fault_a_ta.after is not None and fault_a_ta.after.delay_s == 1.3
+    assert fault_a_ta.after is not None and fault_a_ta.after.delay_s == 0.3
     assert fault_ag_ex.fault is not None and fault_ag_ex.fault.service == "ag_ex"
     for sc in scenarios.values():
         assert sc.commands and sc.description
