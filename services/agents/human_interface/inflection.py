@@ -1,41 +1,43 @@
 """The base form of an English verb said in another form ("poured" → "pour", "brought" →
-"bring", "emptied" → "empty"), from LemmInflect's lemma tables (the ``lemminflect`` package,
-which ships them: nothing is downloaded), so that "I need the beans poured into the bowl" is
-read with a_hi's own verbs (tolerance.py ``wished``).
+"bring", "emptied" → "empty"), so that "I need the beans poured into the bowl" is read with
+a_hi's own verbs (tolerance.py ``wished``), and "I'm watching you pour …" is told, not asked
+(tolerance.py ``_told_of_you``).
 
-The tables load on the first word (≈ 0.2 s on a 2-core VM), or at a_hi's start (:func:`load`,
-reading.py)."""
+The forms are a table (:data:`TABLE`, ≈ 10 kB) of the verbs a_hi begins a command with and of
+the verbs of perceiving or causing, written by scripts/verb_forms.py from LemmInflect's
+inflection tables (the ``lemminflect`` package): a_hi reads the table, not LemmInflect, whose
+tables take 33 MiB in a process (measured on this VM). tests/agents/human_interface/
+test_verb_forms.py checks that it is current."""
 
 from __future__ import annotations
 
 import functools
+import json
+from pathlib import Path
 
+TABLE = Path(__file__).with_name("verb_forms.json")
 MAX_WORD = 24
-"""A longer word is no verb form looked up (the lookup is a dictionary probe, the bound keeps
-the input's work fixed)."""
+"""A longer word is no verb form looked up."""
 
 
 @functools.cache
-def _lemmas() -> object:
-    from lemminflect import getAllLemmas
-
-    return getAllLemmas
+def _table() -> dict[str, tuple[str, ...]]:
+    raw: dict[str, list[str]] = json.loads(TABLE.read_text())
+    return {form: tuple(bases) for form, bases in raw.items()}
 
 
 def load() -> None:
-    """Load the lemma tables now (a_hi's start), so that the first line read does not wait."""
-    verb_lemmas("put")
+    """Read the table now (a_hi's start)."""
+    _table()
 
 
-@functools.lru_cache(maxsize=4096)
 def verb_lemmas(word: str) -> tuple[str, ...]:
-    """The base forms ``word`` (lower case) is of as a verb in LemmInflect's dictionary, most
-    likely first: ("pour",) for "poured", ("see", "saw") for "saw"; () for a word it holds no
-    verb form of ("possible"), longer than :data:`MAX_WORD` or not of letters only."""
-    if len(word) > MAX_WORD or not word.isalpha():
+    """The base forms ``word`` (lower case) is a form of, of the verbs the table holds: ("pour",)
+    for "poured", ("see",) for "saw"; () for any other word, and for one longer than
+    :data:`MAX_WORD`."""
+    if len(word) > MAX_WORD:
         return ()
-    get = _lemmas()
-    return tuple(get(word, upos="VERB").get("VERB", ()))  # type: ignore[operator]
+    return _table().get(word, ())
 
 
-__all__ = ["MAX_WORD", "load", "verb_lemmas"]
+__all__ = ["MAX_WORD", "TABLE", "load", "verb_lemmas"]

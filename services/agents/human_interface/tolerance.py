@@ -1,77 +1,50 @@
 """Other readings of a person's line that a_hi did not understand as said: what people add to a
 command and what they correct in it, taken out so that the command is read (grammar.lark stays a
-grammar of commands, not of everything said around them).
+grammar of commands, not of everything said around them; docs/agents.md, "Around a command",
+has the examples).
 
 :func:`readings` gives, in order, the texts to read instead of the line, each at most once:
 
-1. **A self-correction** ("bring me the jar, sorry, I mean the bowl", "put the cup, er, the bowl
-   on the table"): what follows the last marker (:data:`CORRECTION`) replaces the one noun
-   phrase before the first one, or, when it begins with a verb of its own, the whole command.
-   With two noun phrases before it ("put the cup on the table, sorry, the bowl") which one is
-   corrected is not known: the line is not read otherwise.
-2. **An opener of a follow-up** ("and then bring me the cup", "also …", "after that …"):
-   left out (:data:`OPENERS`).
-3. **Clauses that carry nothing a_hi needs** ("Hiya robot!", "I'm thirsty,", ", would you,
-   love?"): a clause (between punctuation) before the command is left out when it holds no
-   word of a command (a verb, an object or its describing word, a deadline, an urgency, a
-   stop, "it", "one") and no negation (:data:`NEGATIONS`), so that "don't, bring me the cup"
-   is never read as a command; a clause after it also when it holds "it" or a negation of
-   something else ("…, I can't see it anywhere"), not when it names an object, an urgency or
-   another request ("…, not the jar", "…, and the cup"). The longest run of the clauses that
-   is kept is read first. Words before the first word a command begins with ("Mummy says put
-   the jar away") are left out on the same terms as a clause before it, an object named in
-   them also keeping them.
-4. **Word order of another language** ("Put please the bowl on table", "give to me the jar"):
-   a courtesy word inside the command left out, "the" put before an object named bare, "to
-   me" after the verb moved to the end; "you" before the verb left out ("please, you pour
-   the beans …", "I need that you bring …"), "to" after "please" too; an object said before
-   its verb put after it ("the jar, please put on the table", "the bowl you put on table");
-   the word of the verb's frame put between two bare objects ("pour(jar, bowl)"); a "me"
-   after a verb of pouring or putting left out ("pour me the beans in the bowl").
-5. **A reason, a beneficiary or a courtesy after the command** ("… for the kids", "… before
-   the baby knocks it over", "… when you're done"): left out from the word that begins it
-   (:data:`TAIL_OPENERS`) to the end, when what it holds names no object a_km knows, no verb,
-   stop, urgency or deadline, and no negation or condition (:data:`CONDITIONS`); the same
-   for a remark begun by who speaks, said without a comma ("… pls my mom is coming"); a last
-   "already" said in impatience too.
-6. **Terse commands without a verb** ("Bowl on table.", "Cup back in cabinet.", "Beans into
-   the bowl, quick.", "Bowl to me, now!"): read with "put" before them when the line names a
-   place (on, in, back, away), with "bring" when it says "to me" or "here", and is no question
-   ("?"), or where to ("Beans to bowl.").
-7. **When, said apart** ("pour the jar into the bowl, I need it within a minute"): a clause
-   that holds only a deadline or an urgency and words of a wish ("I need it") is joined to the
-   command.
-8. **A wish with the verb after the thing** ("I need the beans poured into the bowl", "can you
-   get the cup brought to me", "make the beans go in the bowl"): read as the command with the
-   verb's base form first (inflection.py; "go" as "put"), when only words of a wish or courtesy
-   stand before the thing, only modal words between ("the cup should be in the cabinet"), and
-   the line holds no negation or condition; a participle with no wish is said, not asked ("the
-   beans poured into the bowl").
-9. **Words a_hi does not know, left out** ("… real quick mate"), when the line asks for one
-   task with no negation, condition, stop or question word first, and each such word names no
-   thing (no determiner before it), acts on none (no object after it) and none ends the line.
+1. **A self-correction** ("…, sorry, I mean the bowl"): what follows the last marker
+   (:data:`CORRECTION`) replaces the one noun phrase before it, or the whole command when it
+   begins with a verb; with two noun phrases before it, the line is not read otherwise.
+2. **An opener of a follow-up** ("and then …", "also …"): left out (:data:`OPENERS`).
+3. **Clauses that carry nothing a_hi needs** ("Hiya robot!", ", would you, love?"): a clause
+   before the command that holds no word of a command and no negation (:data:`NEGATIONS`); one
+   after it also when it holds "it" or a negation of something else, never one that names an
+   object, an urgency, another request or offers another choice ("…, or maybe not"); words
+   before the command's first word on the same terms.
+4. **Word order of another language**: courtesy inside the command left out, "the" before a
+   bare object, "to me" moved to the end, "you" before the verb left out, an object said before
+   its verb put after it, the word of the verb's frame put between two bare objects
+   ("pour(jar, bowl)"), a "me" after a verb of pouring or putting left out.
+5. **A tail after the command** ("… for the kids", "… pls my mom is coming"): from the word that
+   begins it (:data:`TAIL_OPENERS`) to the end, when it names no object, verb, stop, urgency or
+   deadline and holds no negation or condition (:data:`CONDITIONS`); a last "already" too.
+6. **No verb** ("Bowl on table.", "Bowl to me, now!", "Beans to bowl."): "put" before a line
+   that names a place or where to, "bring" before one that says "to me" or "here"; no question.
+7. **When, said apart** ("…, I need it within a minute"): joined to the command.
+8. **A wish with the verb after the thing** ("I need the beans poured into the bowl", "the cup
+   should be in the cabinet"): the verb's base form first (inflection.py; "go" and "be" before
+   a place as "put"), only words of a wish before and modal words between, no negation or
+   condition; a participle with no wish is said, not asked.
+9. **Words a_hi does not know, left out**, when the line asks for one task with no negation,
+   condition, stop or question word first, and each names no thing, acts on none and none ends
+   the line.
 
-A line that tells of the robot doing something rather than asks ("I'm watching you pour the
-jar …": a verb a_hi does not know, "you", a command's verb) is read no other way.
+A line that tells of the robot doing something ("I'm watching you pour the jar …") is read no
+other way. Before these, a line of several sentences (:func:`sentences`) is read as each one
+alone whose other sentences are asides (no verb, stop, urgency, deadline or progress question,
+and, with a negation, no object; the verbs of a question asked aloud, of what the person says of
+themselves and of a word after "is" ask for nothing): "it" is the one object the asides name,
+"them" the one in the plural, else the subject of the aside just before.
 
-Before these, a line of several sentences (:func:`sentences`) is read as each one of them
-alone whose other sentences are asides: they hold no command word (a verb, a stop, an
-urgency, a deadline, a progress question) and, when they hold a negation, no object either
-("I'm so tired. Could you bring me the cup?", "I lost the bowl. Can you find it?"); the verbs
-of a question asked aloud, of what the person says of themselves ("I have a bowl here.") and
-of a word said after "is" ("The bowl is empty.") ask for nothing. "it" in the sentence read is
-the one object the asides name, "them" the one named in the plural, else the subject of the
-aside just before ("The cup is on the table. Put it back.").
-
-Each reading is read as a whole line is (language.py :func:`~.language.interpret`) and the
-first that gives an intent is taken; the intent says what was read (``read_as``: the line and
-the text read), so the person hears it. A reading never adds a word that changes what is
-meant: it only leaves words out, moves words, adds "the", names what "it" is, adds "put" to
-a line that has no verb, or says a verb in its base form.
-
-The work is bounded: the line is at most ``MAX_LINE_CHARS`` characters (services/runtime/
-human.py), at most :data:`MAX_CLAUSES` clauses are looked at and at most :data:`MAX_READINGS`
-readings given."""
+Each reading is read as a whole line is (language.py :func:`~.language.interpret`) and the first
+that gives an intent is taken and said back (``read_as``). A reading never adds a word that
+changes what is meant: it leaves words out, moves them, adds "the", names what "it" is, adds
+"put" or "bring" to a line with no verb, or says a verb in its base form. The work is bounded:
+the line is at most ``MAX_LINE_CHARS`` characters (services/runtime/human.py), at most
+:data:`MAX_CLAUSES` clauses are looked at and at most :data:`MAX_READINGS` readings given."""
 
 from __future__ import annotations
 
