@@ -55,6 +55,8 @@ def table() -> dict[str, list[str]]:
 
 
 def main() -> int:
+    """Write the table (or, with ``--check``, say whether it is current); the exit status: 0, or
+    1 when ``--check`` finds it out of date."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true", help="only say whether the shipped table is current")
     args = ap.parse_args()

@@ -52,7 +52,7 @@ class LineReader:
 
     def start(self) -> None:
         """Start the reader's thread (if not started), which first loads the word-similarity
-        model (similarity.py, ≈ 0.4 s) and the verb forms (inflection.py, ≈ 0.2 s), so that the
+        model (similarity.py, ≈ 0.4 s) and the table of verb forms (inflection.py), so that the
         first line read does not wait for them."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="a_hi-reader", daemon=True)

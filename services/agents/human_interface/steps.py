@@ -18,12 +18,11 @@ from services.agents.human_interface.dialogue import Offer
 from services.agents.human_interface.intents import Command
 from shared.fipa_codec.languages.l_hc import TaskAtom
 
-ANY = frozenset({"*"})
-STEPS: dict[str, frozenset[str]] = {"fetch": ANY, "localise": ANY, "bring": frozenset({"pour"})}
+STEPS: dict[str, frozenset[str] | None] = {"fetch": None, "localise": None, "bring": frozenset({"pour"})}
 """Tasks of a_pl (planner/domain.py TASKS) that prepare others on the same thing, with those
-they prepare: "take" and "grab" say "bring" as often as "take in a hand" ("take the jar and pour
-it"); a bring before a task that moves the thing away ("bring me the jar and put it back") is a
-goal of its own."""
+they prepare (None: any): "take" and "grab" say "bring" as often as "take in a hand" ("take the
+jar and pour it"); a bring before a task that moves the thing away ("bring me the jar and put it
+back") is a goal of its own."""
 
 
 @dataclass(frozen=True)
@@ -54,8 +53,10 @@ def _goals(said: Said) -> list[TaskAtom]:
 
 def _prepares(goal: TaskAtom, last: TaskAtom) -> bool:
     """Whether ``goal`` is ``last`` or a step towards it (:data:`STEPS`, on its things)."""
-    prepared = STEPS.get(goal.name, frozenset())
-    return goal == last or ((prepared is ANY or last.name in prepared) and set(goal.args) <= set(last.args))
+    if goal == last or goal.name not in STEPS:
+        return goal == last
+    prepared = STEPS[goal.name]
+    return (prepared is None or last.name in prepared) and set(goal.args) <= set(last.args)
 
 
 def one_goal(said: list[Said]) -> list[Command] | None:
