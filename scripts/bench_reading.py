@@ -112,7 +112,7 @@ def reset(hi: HumanInterface) -> None:
     hi.asked.clear()
     hi.stops.clear()
     hi.reading.clear()
-    hi._y.clear()
+    hi.engine.y.clear()
 
 
 def handle(hi: HumanInterface, event: HumanInput, read: threading.Event) -> list[Reading]:
@@ -172,7 +172,7 @@ def measure(repeats: int, on_row: Callable[[ReadingRow], None] | None = None) ->
     read = threading.Event()
     try:
         hi = HumanInterface(MemoryBus().transport())
-        hi.bind()
+        hi.engine.bind()
         hi.setup()  # what a_hi's loop does first: the person's face, the reader (its models loaded)
         hi.reader.on_done = read.set  # in place of posting ReadDone to a_hi's own (unstarted) loop
         handle(hi, HumanInput(text="stop", request_id="warm-up"), read)  # the kitchen's words, loaded once

@@ -248,13 +248,13 @@ VERIFY_KINDS = [
     ),
     Mutant(
         "verify.cli.exit",
-        "services/spec_check/cli.py",
-        """    ok, text = verify_report(run_folder(run_dir), spec and _readable_spec(spec))
+        "services/cli/spec.py",
+        """    ok, text = verify_report(run, _run_spec(spec, [run]))
     typer.echo(text)
     if not ok:
         raise typer.Exit(1)
 """,
-        """    ok, text = verify_report(run_folder(run_dir), spec and _readable_spec(spec))
+        """    ok, text = verify_report(run, _run_spec(spec, [run]))
     typer.echo(text)
 """,
         (f"{_CLI}[malformed]",),

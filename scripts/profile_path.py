@@ -7,7 +7,7 @@ process (multiprocessing spawn), the benchmark's synthetic pair ``b_ini0``/``b_p
 two agent processes the runtime is traced (``time.perf_counter_ns``, CLOCK_MONOTONIC: one clock
 for every process of the host; the thread's native id) at five points of each communicate:
 
-- ``send``: :meth:`Agent.send` or :meth:`Agent.reply` called (by the behaviour's transition function);
+- ``send``: :meth:`Engine.send` or :meth:`Engine.reply` called (by the behaviour's transition function);
 - ``put``: :meth:`ZenohTransport.publish` called (the output buffer dispatched after the step);
 - ``cb``: Zenoh's subscriber callback entered (on a Zenoh thread);
 - ``take0``/``take1``: the agent's take-in (services/runtime/admission.py ``Gate.take_all``, of
@@ -20,8 +20,8 @@ threads of the three processes are read from ``/proc/<pid>/task/*/`` (``comm``,
 trips: context switches per round trip per thread, i.e. how often each thread went to sleep
 and was woken up.
 
-An idle agent takes a communicate in on the thread it arrived on (services/runtime/agent.py
-``Agent._take_here``); ``ROCO_RECEIVE=agent-thread`` profiles the path that hands every
+An idle agent takes a communicate in on the thread it arrived on (services/runtime/engine.py
+``Engine._take_here``); ``ROCO_RECEIVE=agent-thread`` profiles the path that hands every
 communicate to the agent's thread instead. The receiving threads poll before they sleep
 (services/runtime/polling.py); ``ROCO_RECEIVE_POLL_US=0`` profiles them sleeping at once. The
 raw pair sleeps in ``recv()``. The CPU time each process used per round trip is printed last.
@@ -40,6 +40,7 @@ import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -80,14 +81,6 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
 
     base: type[Agent] = BenchInitiator if name.startswith("b_ini") else BenchParticipant
 
-    def send(self: Agent, *args: Any, **kwargs: Any) -> Any:
-        events.append(("send", now(), tid()))
-        return base.send(self, *args, **kwargs)
-
-    def reply(self: Agent, *args: Any, **kwargs: Any) -> Any:
-        events.append(("send", now(), tid()))
-        return base.reply(self, *args, **kwargs)
-
     class TracedGate:
         """The agent's take-in (a compiled ``Gate``), traced around each call."""
 
@@ -101,11 +94,22 @@ def traced_agent(name: str, endpoint: str, conn: Connection) -> None:
             events.append(("take1", now(), tid()))
             events.append(("take_cpu", time.thread_time_ns() - cpu, 0))
 
-    cls = type(name, (base,), {"name": name, "send": send, "reply": reply})
+    cls = type(name, (base,), {"name": name})
     transport = Traced([endpoint], links=None)  # as roco bench: ROCO_LINKS
     agent = cls(transport, bench_spec(1), conn)
-    agent._gate = TracedGate(agent._gate)
-    agent.bind()
+    engine = agent.engine
+
+    def traced(inner: Callable[..., Any]) -> Callable[..., Any]:
+        def send(*args: Any, **kwargs: Any) -> Any:
+            events.append(("send", now(), tid()))
+            return inner(*args, **kwargs)
+
+        return send
+
+    for method in ("send", "reply"):  # the agent's sends, traced (its engine's methods)
+        setattr(engine, method, traced(getattr(engine, method)))
+    engine._gate = TracedGate(engine._gate)
+    engine.bind()
 
     def trace(cmd: tuple[Any, ...]) -> bool:
         if cmd[0] != "trace":

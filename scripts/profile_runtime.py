@@ -96,26 +96,26 @@ def pair() -> tuple[Any, Any]:
 
 def hand(src: Any, dst: Any) -> None:
     """Deliver everything ``src`` published to ``dst``'s input queue and acquire it."""
-    for key, payload in src.transport.out:
-        dst._on_payload(key, payload)
-    src.transport.out.clear()
-    dst._acquire(0)
+    for key, payload in src.engine.transport.out:
+        dst.engine._on_payload(key, payload)
+    src.engine.transport.out.clear()
+    dst.engine.acquire(0)
 
 
 def round_trips(n: int) -> float:
     ini, par = pair()
     ini.post(("pingpong", n, 200))
-    ini._acquire(0)
+    ini.engine.acquire(0)
     t0 = time.perf_counter()
     ini._work()
-    ini._dispatch()
-    while ini.job is not None and ini.transport.out:  # else the exchange stopped: checked below
+    ini.engine.dispatch()
+    while ini.job is not None and ini.engine.transport.out:  # else the exchange stopped: checked below
         hand(ini, par)
         par._serve()
-        par._dispatch()
+        par.engine.dispatch()
         hand(par, ini)
         ini._work()
-        ini._dispatch()
+        ini.engine.dispatch()
     took = (time.perf_counter() - t0) / (n + WARMUP) * 1e6
     check_exchange(ini.counters, par.counters, Exchange({"request": n + WARMUP}, {"inform": n + WARMUP}))
     return took
@@ -124,28 +124,28 @@ def round_trips(n: int) -> float:
 def stream(n: int) -> tuple[float, float]:
     ini, par = pair()
     ini.post(("stream", n, 200))
-    ini._acquire(0)
+    ini.engine.acquire(0)
     ini._work()
-    ini._dispatch()
+    ini.engine.dispatch()
     hand(ini, par)
     par._serve()
-    par._dispatch()
-    agree = list(par.transport.out)
-    par.transport.out.clear()
+    par.engine.dispatch()
+    agree = list(par.engine.transport.out)
+    par.engine.transport.out.clear()
     t0 = time.perf_counter()
     while par.stream is not None:
         par._stream()
-        par._dispatch()
+        par.engine.dispatch()
     send_us = (time.perf_counter() - t0) / n * 1e6
-    informs = par.transport.out
-    par.transport.out = agree
+    informs = par.engine.transport.out
+    par.engine.transport.out = agree
     hand(par, ini)
     ini._work()
     t0 = time.perf_counter()
     for i in range(0, len(informs), 256):
         for key, payload in informs[i : i + 256]:
-            ini._on_payload(key, payload)
-        ini._acquire(0)
+            ini.engine._on_payload(key, payload)
+        ini.engine.acquire(0)
         ini._work()
     receive_us = (time.perf_counter() - t0) / n * 1e6
     check_exchange(ini.counters, par.counters, Exchange({"subscribe": 1}, {"agree": 1, "inform": n}))
@@ -172,7 +172,9 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("specification's answers", "services/runtime/lookups.py", ""),
     ("routing to a role", "services/runtime/roles/", ""),
     ("sending", "services/runtime/emission.py", ""),
-    ("elementary actions, hand-offs", "services/runtime/agent.py", ""),
+    ("sending: interface checks", "services/runtime/send_checks.py", ""),
+    ("elementary actions, hand-offs", "services/runtime/engine.py", ""),
+    ("the agent's context", "services/runtime/agent.py", ""),
     ("behaviours", "services/runtime/behaviour.py", ""),
     ("the handler (benchmark agents)", "services/bench/", ""),
     ("the put (collecting transport)", "scripts/profile_runtime.py", "publish"),

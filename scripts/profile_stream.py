@@ -6,7 +6,7 @@ of its own on a free loopback port, started as ``roco bench`` starts them (multi
 spawn). After one warm-up stream, ``--repeat`` alternations of two streams of ``--n`` informs
 (200 B of content, 256 per step, one fipa-subscribe conversation): first with what a step sends
 to its receiver in batches (shared/fipa_codec/batch.py), then one put per communicate
-(``Agent.batch_puts`` False). For each stream: the rate the initiator measured (as
+(``Engine.batch_puts`` False). For each stream: the rate the initiator measured (as
 services/bench/messaging.py's ``Throughput`` counts it), communicates lost, and the CPU time of
 each process per communicate (``/proc/<pid>/task/<tid>/stat``: user + system ticks of every
 thread, scripts/benchlib.py), the agent's own thread (the process's main thread) apart.

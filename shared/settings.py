@@ -336,7 +336,7 @@ class Settings(msgspec.Struct, frozen=True, kw_only=True):
         About(
             "ROCO_RECEIVE",
             "where an idle agent takes a communicate in: on the receiving thread, or handed to its own "
-            "thread (the slower path, to compare; services/runtime/agent.py)",
+            "thread (the slower path, to compare; services/runtime/engine.py)",
         ),
     ] = "inline"
     hooks: Annotated[

@@ -446,7 +446,7 @@ class PairFigures:
     """The maximum poll window (µs) of roco's receiving threads in the run (0: off)."""
     roco_tput: Throughput = field(default_factory=Throughput)
     roco_tput_single: Throughput = field(default_factory=Throughput)
-    """roco's stream with every communicate in a put of its own (``Agent.batch_puts`` False)."""
+    """roco's stream with every communicate in a put of its own (``Engine.batch_puts`` False)."""
     raw_tput: Throughput = field(default_factory=Throughput)
 
 

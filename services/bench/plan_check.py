@@ -85,16 +85,16 @@ def leaf_signature(plan: HierarchicalPlan) -> tuple[str, ...]:
 def _running(*agents: Agent) -> Iterator[None]:
     """``agents`` bound and each running on a thread of its own inside the block; stopped and
     joined after it."""
-    threads = [threading.Thread(target=a.run, name=a.name, daemon=True) for a in agents]
+    threads = [threading.Thread(target=a.engine.run, name=a.name, daemon=True) for a in agents]
     for a in agents:
-        a.bind()
+        a.engine.bind()
     for t in threads:
         t.start()
     try:
         yield
     finally:
         for a in agents:
-            a.stop()
+            a.engine.stop()
         for t in threads:
             t.join(timeout=5)
 

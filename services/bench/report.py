@@ -2,7 +2,7 @@
 run's command, commit, machine and load), the targets met or missed, and one section per part
 (what was timed, from where to where, how many times, in which processes; then its table).
 
-The functions here only render: services/bench/cli.py runs the parts and passes their figures.
+The functions here only render: services/bench/runner.py runs the parts and passes their figures.
 """
 
 from __future__ import annotations

@@ -83,7 +83,7 @@ class BenchInform(msgspec.Struct, frozen=True, tag="bench_inform"):
 
 class BenchSubscription(msgspec.Struct, frozen=True, tag="bench_subscription"):
     """The content of a benchmark ``subscribe``: send ``count`` informs of ``size`` bytes, in
-    batches (``Agent.batch_puts``) unless ``batched`` is False."""
+    batches (``Engine.batch_puts``) unless ``batched`` is False."""
 
     count: int
     size: int
@@ -164,7 +164,7 @@ def bench_spec(pairs: int, raw_pairs: int = 0) -> SystemSpec:
 
 def request_bytes(size: int) -> int:
     """Length (B) of roco's encoded request communicate with ``size`` bytes of content, as
-    :meth:`Agent.send` builds it (the raw Zenoh payload is made this long)."""
+    :meth:`Engine.send` builds it (the raw Zenoh payload is made this long)."""
     _register()  # registered where used: importing this module changes no registry
     language, body = encode_content(BenchRequest(seq=1, data=sized_data(size)))
     msg = Communicate(
@@ -223,7 +223,7 @@ class BenchInitiator(Agent):
         if self.job is None and self.commands and self.peer in self.peers:
             self._start(self.commands.popleft())
         if self.job is None:
-            self.x.clear()
+            self.engine.x.clear()
         elif self.job[0] == "pingpong":
             self._pingpong()
         elif self.job[0] == REACH:
@@ -245,7 +245,7 @@ class BenchInitiator(Agent):
         self.data = sized_data(size)
         self.t0 = time.perf_counter()
         if kind == "stream":
-            msg = self.send(
+            msg = self.engine.send(
                 self.peer,
                 Performative.SUBSCRIBE,
                 BenchSubscription(count=n, size=size, batched=bool(rest[0]) if rest else True),
@@ -257,7 +257,7 @@ class BenchInitiator(Agent):
     def _reach_start(self, cmd: tuple[Any, ...]) -> None:
         """One request to the peer, retransmitted until answered (:data:`REACH`)."""
         self.job = cmd
-        msg = self.send(
+        msg = self.engine.send(
             self.peer,
             Performative.REQUEST,
             BenchRequest(seq=-1, data=b""),
@@ -268,8 +268,8 @@ class BenchInitiator(Agent):
         self.conversation = msg.conversation_id or ""
 
     def _reach(self) -> None:
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             if item.msg.conversation_id != self.conversation:
                 continue
             if item.performative is Performative.INFORM:
@@ -285,8 +285,8 @@ class BenchInitiator(Agent):
     def _pingpong(self) -> None:
         assert self.job is not None
         n = self.job[1]
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             if item.performative is not Performative.INFORM:  # not-understood, refuse, failure
                 self._finish({"error": f"{item.performative.value} from {item.sender} to a request"})
                 return
@@ -303,7 +303,7 @@ class BenchInitiator(Agent):
             self._finish({"kind": "pingpong", "samples_s": self.samples, "ends_s": self.ends})
             return
         self.t0 = time.perf_counter()
-        msg = self.send(
+        msg = self.engine.send(
             self.peer,
             Performative.REQUEST,
             BenchRequest(seq=self.done, data=self.data),
@@ -336,8 +336,8 @@ class BenchInitiator(Agent):
     def _take_informs(self) -> str | None:
         """Count the stream's informs in the input buffer; what ended the stream instead (a
         not-understood, refuse or failure to the subscribe), or None."""
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             if item.performative is Performative.INFORM and item.msg.conversation_id == self.conversation:
                 self.count += 1
             elif item.performative is not Performative.AGREE:
@@ -373,20 +373,22 @@ class BenchParticipant(Agent):
             cmd = self.r.popleft()
             if cmd is not None:
                 answer_counters(self, self.results, cmd)
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             content = item.content
             if item.performative is Performative.REQUEST and isinstance(content, BenchRequest):
-                self.reply(item, Performative.INFORM, BenchInform(seq=content.seq, data=content.data))
+                self.engine.reply(item, Performative.INFORM, BenchInform(seq=content.seq, data=content.data))
             elif item.performative is Performative.SUBSCRIBE and isinstance(content, BenchSubscription):
-                self.reply(item, Performative.AGREE)
+                self.engine.reply(item, Performative.AGREE)
                 self.stream, self.left, self.data = item, content.count, sized_data(content.size)
                 self.batch_puts = content.batched
 
     def _stream(self) -> None:
         batch = min(STREAM_BATCH, self.left)
         for i in range(batch):
-            self.reply(self.stream, Performative.INFORM, BenchInform(seq=self.left - i, data=self.data))
+            self.engine.reply(
+                self.stream, Performative.INFORM, BenchInform(seq=self.left - i, data=self.data)
+            )
         self.left -= batch
         if self.left <= 0:
             self.stream = None
@@ -428,7 +430,7 @@ def agent_process(
     cls = type(name, (base,), {"name": name})
     transport = ZenohTransport([endpoint], links=None, identity=name)
     agent = cls(transport, spec, conn)
-    agent.bind()
+    agent.engine.bind()
     serve(agent, transport, conn)
 
 
@@ -450,7 +452,7 @@ def serve(
             except (EOFError, OSError):
                 cmd = ("stop",)
             if cmd[0] == "stop":
-                agent.stop()
+                agent.engine.stop()
                 return
             if on_command is None or not on_command(cmd):
                 agent.post(cmd)
@@ -458,7 +460,7 @@ def serve(
     threading.Thread(target=read, name="bench-commands", daemon=True).start()
     conn.send(("ready", os.getpid()))
     try:
-        agent.run()
+        agent.engine.run()
     finally:
         transport.close()
 

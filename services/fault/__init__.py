@@ -4,5 +4,6 @@
 launcher's :class:`~services.fleet.launcher.Fleet` or the fleet of ``roco up``), a Python
 API that ``roco chaos`` calls too. ``control``: message and network faults of running
 agents through their fault layer (``services.runtime.faults``) over Zenoh. ``compose``: the
-same faults on a Docker Compose deployment. ``cli``: the ``roco fault`` commands.
+same faults on a Docker Compose deployment. ``target``: the fleet a fault acts on and the
+recorder its events go to. The ``roco fault`` commands: services/cli/fault.py.
 """

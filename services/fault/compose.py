@@ -20,6 +20,7 @@ the command runner is injectable (tests check the command lines without a Docker
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 import subprocess
@@ -232,6 +233,38 @@ class Compose:
 
     def partitioned(self) -> list[str]:
         return sorted(self._partitions())
+
+    # ---- what `roco fault net` and `clear` apply -----------------------------------------
+    def net(
+        self, service: str, delay: float | None, loss: float | None, partition: bool | None, dev: str
+    ) -> list[FaultEvent]:
+        """`roco fault net` on ``service``'s container: netem when the ``delay`` (s) or the
+        ``loss`` is given, then a ``partition`` (True) or its healing (False); the events
+        applied. Raises FaultError at the first that cannot be."""
+        events = []
+        if delay is not None or loss is not None:
+            events.append(self.netem(service, delay or 0.0, loss or 0.0, dev))
+        if partition is True:
+            events.append(self.partition(service))
+        elif partition is False:
+            events.append(self.heal(service))
+        return events
+
+    def clear(self, target: str | None, dev: str) -> list[FaultEvent]:
+        """`roco fault clear` on the containers of ``target`` (None: every service): a
+        partition healed, netem removed (every service: where it can be); the events applied.
+        Raises FaultError at the first that cannot be."""
+        events = []
+        for service in [target] if target else self.services:
+            if service in self.partitioned():
+                events.append(self.heal(service))
+            if target is not None:
+                events.append(self.netem(service, 0.0, 0.0, dev))
+            else:
+                # not running, or no tc in its image: nothing to clear there
+                with contextlib.suppress(FaultError):
+                    events.append(self.netem(service, 0.0, 0.0, dev))
+        return events
 
     def tc_show(self, service: str, dev: str = "eth0") -> str:
         cid = self.container(service)

@@ -10,18 +10,55 @@ import queue
 import time
 import uuid
 from collections.abc import Collection
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import msgspec
 import zenoh
 
 from services.runtime.faults import (
+    ANY_CHANNEL,
     CONTROL_ALL,
     STATE_ALL,
     FaultReport,
     FaultUpdate,
+    NetFaults,
     control_key,
 )
 from services.runtime.session import alive_agents
+
+if TYPE_CHECKING:
+    from services.spec.model import SystemSpec
+
+
+@dataclass(frozen=True)
+class NetChange:
+    """What `roco fault net` changes of an agent's network faults (None: kept as it is)."""
+
+    delay: float | None
+    loss: float | None
+    partition: bool | None
+
+    def applied_to(self, now: NetFaults) -> NetFaults:
+        return NetFaults(
+            delay_s=now.delay_s if self.delay is None else self.delay,
+            loss=now.loss if self.loss is None else self.loss,
+            partition=now.partition if self.partition is None else self.partition,
+        )
+
+
+def clear_update(target: str | None, system: SystemSpec) -> tuple[FaultUpdate, str | None] | None:
+    """The update that clears ``target``'s faults (a channel, '*', an agent; None: every
+    fault) in the fault layers of ``system``'s agents, and the agent it goes to (None: every
+    agent); None when ``target`` is a service without one."""
+    channels = [c.name for c in system.channels]
+    if target in system.agent_names:
+        return FaultUpdate(clear_services=[target]), target
+    if target is None:
+        return FaultUpdate(clear_channels=["*"], clear_services=["*"]), None
+    if target in (*channels, ANY_CHANNEL):
+        return FaultUpdate(clear_channels=[target]), None
+    return None
 
 
 def send_update(

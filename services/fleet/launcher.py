@@ -55,6 +55,22 @@ class LaunchError(RuntimeError):
     """A process of the fleet did not start or did not come alive in time."""
 
 
+class NotUp(Exception):
+    """A fleet kept running (``roco up``, ``roco hosts up``) did not come up: ``why`` (its
+    LaunchError's words, or "interrupted" by Ctrl-C), stopped, its report written."""
+
+    def __init__(self, why: str, interrupted: bool) -> None:
+        super().__init__(why)
+        self.why = why
+        self.interrupted = interrupted
+
+    @classmethod
+    def of(cls, exc: BaseException) -> NotUp:
+        """The NotUp of what stopped the fleet coming up: ``exc``, a KeyboardInterrupt or not."""
+        interrupted = isinstance(exc, KeyboardInterrupt)
+        return cls("interrupted" if interrupted else str(exc), interrupted)
+
+
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that is free now."""
     with socket.socket() as s:
@@ -165,7 +181,7 @@ class Fleet:
             self._spawn(name, service_args(name, self.endpoint))
 
     def start_gateway(self, port: int) -> None:
-        """Start ``roco gateway`` (services/gateway/cli.py) on ``127.0.0.1:port`` for this
+        """Start ``roco gateway`` (services/cli/gateway.py) on ``127.0.0.1:port`` for this
         fleet's router as process :data:`GATEWAY`: it authenticates as ``gateway`` when the
         fleet has access control and is stopped with the agents. Its liveliness token comes
         once it serves HTTP (:meth:`wait_alive`)."""
@@ -174,7 +190,7 @@ class Fleet:
         )
 
     def start_ros2(self, args: Iterable[str] = ("--all",)) -> None:
-        """Start ``roco ros2 args…`` (services/ros2/live_cli.py) for this fleet's router as
+        """Start ``roco ros2 args…`` (services/cli/ros2.py) for this fleet's router as
         process :data:`ROS2`: it authenticates as ``ros2`` when the fleet has access control
         and is stopped with the agents. Its liveliness token comes once its node is declared
         (:meth:`wait_alive`)."""

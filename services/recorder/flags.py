@@ -113,3 +113,18 @@ def read_flags(run_dir: Path) -> list[LiveFlag]:
         except (msgspec.DecodeError, msgspec.ValidationError):
             continue
     return flags
+
+
+def violated_words(run_dir: Path) -> str:
+    """``requirement R3.3 violated during the run: …`` for the requirements flagged in
+    ``run_dir``, the first one's flag in words; empty when none was flagged. What `roco run`
+    and `roco scenario` exit 1 with."""
+    try:
+        flags = read_flags(run_dir)
+    except OSError as exc:
+        return f"the live requirement flags cannot be read: {exc}"
+    if not flags:
+        return ""
+    ids = sorted({f.requirement for f in flags})
+    which = f"requirement{'s' if len(ids) > 1 else ''} {', '.join(ids)}"
+    return f"{which} violated during the run: {flags[0].line()}"

@@ -10,7 +10,7 @@ before that input came: services/replay/driver.py), at the times they reached th
 publishers' timestamps and paths: services/replay/record.py). The agent
 reads its clock and draws its identifiers from :class:`~services.replay.sources.ReplaySources`
 (the clock set from the record's times, seeded random bytes: services/runtime/sources.py), and
-its elementary actions run on the caller's thread (``Agent.drive``), so a replay is
+its elementary actions run on the caller's thread (``Engine.drive``), so a replay is
 deterministic. What it sends is compared, communicate by
 communicate, with what it sent in the run, up to identifiers and clock readings
 (services/replay/compare.py). Modules: :mod:`~services.replay.record` (the agent's part of the

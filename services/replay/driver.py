@@ -6,7 +6,7 @@ knowledge store) in fresh folders of the replay's own: it starts as in the run, 
 kept. Every other agent's liveliness token is on the bus when the agent saw it appear and go
 away, as the presence record tells by its time and its cause (services/replay/presence.py). The
 driver owns the agent's time (:class:`~services.replay.sources.ReplaySources`) and runs its
-elementary actions on its own thread (``Agent.drive``): the agent starts at its first
+elementary actions on its own thread (``Engine.drive``): the agent starts at its first
 communicate's recorded time (``AgentRecord.start``), the clock moves to the time each input
 reached the agent (``Recorded.came``: its sender's timestamp and path, not the time the recorder
 saw it, which may be after the agent had answered it), or first to whatever time the agent waits
@@ -94,7 +94,7 @@ TROUBLE = (
     "protocol_violations",
     "deadline_failures",
 )
-"""The replayed agent's counters (services/runtime/agent.py) the result reports when not 0."""
+"""The replayed agent's counters (services/runtime/engine.py) the result reports when not 0."""
 MAX_STEPS = 1_000_000
 """Steps the agent may take without input before the replay gives up on it (it never blocks)."""
 MAX_ORDERS = 3
@@ -255,7 +255,7 @@ class _Replay:
         return item.t if item.seq in self.arrival else item.came
 
     def run(self) -> None:
-        wake = self.agent.drive()
+        wake = self.agent.engine.drive()
         self._check_inputs()
         for item in self.inputs:
             at = self.at(item)
@@ -272,9 +272,9 @@ class _Replay:
             for item in self.held:
                 self._put(item)
             self.held.clear()
-            self.agent.drive()
-        self.agent.stop()
-        self.agent.drive()
+            self.agent.engine.drive()
+        self.agent.engine.stop()
+        self.agent.engine.drive()
         self._unsent()
 
     def waits(self, item: Recorded) -> bool:
@@ -314,12 +314,12 @@ class _Replay:
     def _drive(self) -> float | None:
         """Let the agent take its steps due now, each held input put in as soon as the agent has
         sent what came before it; the time it next waits for (None: none)."""
-        wake = self.agent.drive()
+        wake = self.agent.engine.drive()
         while ready := [item for item in self.held if not self.waits(item)]:
             self.held = [item for item in self.held if item not in ready]
             for item in ready:
                 self._put(item)
-            wake = self.agent.drive()
+            wake = self.agent.engine.drive()
         return wake
 
     def _peers_until(self, t: float, wake: float | None) -> float | None:
@@ -601,7 +601,7 @@ def _peers(run_dir: Path, record: AgentRecord, spec: SystemSpec, causal: bool = 
 
 def _run(run: _Replay, result: ReplayResult) -> None:
     """Make the replay, and fill ``result`` with what it found, also when the agent fails."""
-    run.agent.bind()
+    run.agent.engine.bind()
     try:
         run.run()
     except ReplayError:

@@ -11,7 +11,7 @@ conversation-id where its protocol is followed, the bound on open conversations 
 and its protocol state, stepped (:func:`step`). It decides and changes only the protocol
 state and the duplicate filter; what the agent does about the outcome (answer
 not-understood, count, log, put the communicate into its input buffer) is the agent's
-(services/runtime/agent.py ``Agent.not_taken``). :meth:`Gate.take_all` takes a step's inputs in,
+(services/runtime/engine.py ``Engine.not_taken``). :meth:`Gate.take_all` takes a step's inputs in,
 in one call.
 """
 
@@ -87,7 +87,7 @@ class Admission:
 
 
 class Host(Protocol):
-    """What :class:`Gate` asks of its agent (services/runtime/agent.py ``Agent``)."""
+    """What :class:`Gate` asks of its agent's engine (services/runtime/engine.py ``Engine``)."""
 
     def conversation_stepped(
         self, peer: str, conversation_id: str, performative: Performative, outcome: str
@@ -115,7 +115,7 @@ class Gate:
     conversation opened anew or a crossing told to the ``host``, the reply awaited noted
     (``pending``) and the communicate put into the input buffer ``x`` as
     ``received(msg, content, channel, False, performative, sender)``
-    (services/runtime/agent.py ``Received``). ``lookups``, ``dedup``, ``states``,
+    (services/runtime/values.py ``Received``). ``lookups``, ``dedup``, ``states``,
     ``pending``, ``x`` and ``counters`` are the agent's own (shared, changed in place);
     ``events`` are the keys of the agent's other inputs (the runtime's own events, which
     :meth:`take_all` hands to the host)."""

@@ -23,7 +23,7 @@ stays pending and goes, first, with the key's next publish.
 
 Within one agent its steps run one at a time (``Agent`` holds its turn while it puts), so what
 arrives while a step puts waits in the agent's input queue and the next step's answers to one
-receiver leave in one batch already (``Agent._dispatch``); the backlog here joins what other
+receiver leave in one batch already (``Engine.dispatch``); the backlog here joins what other
 threads put on the same key meanwhile: the fault layer's worker (services/runtime/faults.py),
 several agents or clients on one transport.
 """

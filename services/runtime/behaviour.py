@@ -76,7 +76,7 @@ class Every:
         """When (``clock`` s) the condition holds next; None before the first call."""
 
     def bind(self, fleet: FleetClock, wall_clock: Callable[[], float]) -> None:
-        """Run on the agent's clocks (services/runtime/agent.py does it for every timer of its
+        """Run on the agent's clocks (services/runtime/engine.py does it for every timer of its
         FSM): ``fleet``, or ``wall_clock`` (s, monotonic) for a timer that asked for the wall
         clock; a timer given a clock, or that has already run, keeps its clock."""
         if not self._bindable or self.due is not None:

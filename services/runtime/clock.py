@@ -5,7 +5,7 @@ When the fleet runs as fast as possible (``ROCO_REALTIME=0``, ``roco run`` witho
 that acts every 2 s of wall time acts once per several seconds of the robot's world. ag_ex
 publishes the simulation's time (s) on ``roco/sim/clock`` (:data:`services.runtime.keys.SIM_CLOCK`,
 :func:`encode_sim_time`) at its state rate (20 Hz, wall); every agent hears it
-(services/runtime/agent.py ``Agent.bind``) and marks its :class:`FleetClock`, which then runs
+(services/runtime/engine.py ``Engine.bind``) and marks its :class:`FleetClock`, which then runs
 at the simulation's pace. In real time (``ROCO_REALTIME=1``) the agents do not listen and the
 clock is the wall clock.
 

@@ -5,7 +5,8 @@ conversation's ``reply``/``send``/``cancel``/``refuse_with`` or ``self.roles.ope
 protocol's state machine checks at run time. This module reads the code (Python's ``ast``; it
 runs nothing) for what would bypass or blur that:
 
-- a **raw send**: ``self.send``, ``self.reply``, ``self.fail``, ``self.not_understood``, a
+- a **raw send**: the engine's ``send``, ``reply``, ``fail`` or ``not_understood``
+  (``self.engine.send``; ``self.send`` on an agent of its own base), a
   ``publish`` on the transport, a ``Communicate(...)`` built by hand, or a FIPA key
   (``keys.fipa_key``): the runtime's own tools, not an agent's;
 - a **performative comparison**: ``x.performative is …``, ``… in (Performative.X, …)``, a
@@ -33,8 +34,8 @@ from pathlib import Path
 
 from shared.fipa_codec.acts import Performative
 
-RAW_SENDS = frozenset({"send", "reply", "fail", "not_understood", "_out"})
-"""Methods of :class:`~services.runtime.agent.Agent` an agent with roles does not call."""
+RAW_SENDS = frozenset({"send", "reply", "fail", "not_understood"})
+"""Methods of services/runtime/engine.py ``Engine`` an agent with roles does not call."""
 
 
 @dataclass(frozen=True)
@@ -220,11 +221,12 @@ def _call(node: ast.Call, where: str, opens: frozenset[tuple[str, str]], named: 
         return [Finding(where, "builds a Communicate by hand (only its roles send)")]
     if not isinstance(func, ast.Attribute):
         return []
-    if func.attr in RAW_SENDS and _is_self(func.value):
+    if func.attr in RAW_SENDS and (_is_self(func.value) or _is_self(func.value, "engine")):
         first = node.args[0] if node.args else None
         peer = first.value if isinstance(first, ast.Constant) and isinstance(first.value, str) else None
         to = f" to {peer}" if peer is not None and func.attr == "send" else ""
-        return [Finding(where, f"sends with self.{func.attr}{to} outside its roles")]
+        said = "self.engine" if _is_self(func.value, "engine") else "self"
+        return [Finding(where, f"sends with {said}.{func.attr}{to} outside its roles")]
     if func.attr == "publish":
         return [Finding(where, "publishes on the transport (only its roles send; self.emit for effectors)")]
     if func.attr == "fipa_key":

@@ -5,9 +5,9 @@ buffer y; FIPA SC00061 §2), compiled by mypyc with the rest of the agent runtim
 
 :class:`Outbox` holds what every communicate an agent sends needs (its name and identifier,
 its conversations' protocol states, its duplicate filter, the replies it awaits, its output
-buffer and counters) and :meth:`Outbox.send` does, for each one, what ``Agent.send`` promises
-(services/runtime/agent.py): the checks against the interface (kept per receiver,
-performative, protocol and content type by the agent, ``Agent.outgoing``), the
+buffer and counters) and :meth:`Outbox.send` does, for each one, what ``Engine.send`` promises
+(services/runtime/engine.py): the checks against the interface (kept per receiver,
+performative, protocol and content type by the agent, ``SendChecks.outgoing``), the
 communicate's construction (with its own checks, shared/fipa_codec/message.py), the
 conversation's protocol state, stepped (services/runtime/admission.py ``step``), encoding with
 its size limit, the reply awaited, the answer remembered for a copy of what it answers, the
@@ -44,13 +44,13 @@ SENT_COUNTER = {p: f"sent.{p.value}" for p in Performative}
 class Outgoing(NamedTuple):
     """What every communicate an agent sends to one receiver, of one performative in one
     protocol, carrying a term of one type (or none) shares, once the interface allowed it
-    (services/runtime/agent.py ``Agent.outgoing``): its ``key`` and ``receiver``, its content
+    (services/runtime/send_checks.py ``SendChecks.outgoing``): its ``key`` and ``receiver``, its content
     ``language`` and ``ontology``, ``followed``, the conversation's state machine and the
     agent's role in it (None: not followed), ``protocol``, its name as a plain ``str``
     (what the communicate carries: one of ``str``'s subclasses, e.g. services/spec/names.py
     ``ProtocolName``, is not a word known to be valid without a call,
     shared/fipa_codec/message.py), and ``streams``: the performative opens a conversation
-    of the protocol that many replies answer (services/runtime/agent.py ``Agent._streams``;
+    of the protocol that many replies answer (services/runtime/send_checks.py ``SendChecks._streams``;
     a reply awaited stays awaited after the first)."""
 
     key: str
@@ -63,7 +63,7 @@ class Outgoing(NamedTuple):
 
 
 class Host(Protocol):
-    """What :class:`Outbox` asks of its agent (services/runtime/agent.py ``Agent``)."""
+    """What :class:`Outbox` asks of its agent's engine (services/runtime/engine.py ``Engine``)."""
 
     @property
     def sources(self) -> Sources:
@@ -132,7 +132,7 @@ class Outbox:
         retry_s: float | None,
     ) -> Communicate:
         """Put a communicate for ``to`` into the output buffer (arguments and errors as
-        services/runtime/agent.py ``Agent.send``: SpecViolation through the host when the
+        services/runtime/engine.py ``Engine.send``: SpecViolation through the host when the
         interface or the conversation's protocol state forbids it, ContentError for a term of
         no content language, EncodeError when it is too large, ValueError for a ``retry_s``
         that is not positive). Returns the communicate."""
@@ -182,7 +182,7 @@ class Outbox:
         and empty it; ``batched``: communicates in a row to one receiver go in one put, a
         batch (shared/fipa_codec/batch.py ``runs``). Counts the communicates put
         (``published``) and keeps the protocol states of what was sent. (services/runtime/
-        agent.py ``Agent._dispatch``.)"""
+        engine.py ``Engine.dispatch``.)"""
         y = self.y
         if len(y) == 1:  # the usual step: one communicate, no batch to look for
             key, payload = y[0]
@@ -248,5 +248,5 @@ class Outbox:
 
 
 def _alone(key: str) -> bool:
-    """No key's communicates are batched (``Agent.batch_puts`` False)."""
+    """No key's communicates are batched (``Engine.batch_puts`` False)."""
     return False

@@ -438,7 +438,7 @@ class FaultyTransport:
 
     @property
     def inline_receive(self) -> bool:
-        """As the wrapped transport's (``Agent._take_here``)."""
+        """As the wrapped transport's (``Engine._take_here``)."""
         return bool(getattr(self.inner, "inline_receive", False))
 
     def more_waiting(self) -> bool:
@@ -478,7 +478,7 @@ class FaultyTransport:
 
     @property
     def session_id(self) -> str:
-        """The inner transport's session id ("" when it has none; ``Agent.counters_report``)."""
+        """The inner transport's session id ("" when it has none; ``Engine.counters_report``)."""
         return str(getattr(self.inner, "session_id", ""))
 
     # ---- liveliness -----------------------------------------------------------------------

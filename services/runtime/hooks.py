@@ -5,7 +5,7 @@ The runtime knows only these protocols. The implementation is a plug-in named by
 the specification names each agent's implementation: ``ROCO_HOOKS`` (``module:attribute`` of
 a :class:`Hooks`), by default :data:`DEFAULT_HOOKS` (Rerun, services/viewer/hooks.py) when
 ``ROCO_RERUN`` is ``1``; with neither, a process gets no hooks and imports nothing for them.
-:class:`~services.runtime.agent.Agent` loads them once (``Agent.hooks``); the traffic recorder
+:class:`~services.runtime.agent.Agent` loads them once (``Engine.hooks``); the traffic recorder
 calls :func:`load_hooks` itself.
 
 Every method of a sink must return quickly and never raise: a viewer is never a reason to

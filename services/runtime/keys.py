@@ -9,7 +9,7 @@ access control can say who may send what where (docs/security.md, "Who may send 
 ``roco/sim/disturb``                         the simulated world's disturbances (a person moves an
                                              object): JSON :class:`services.agents.executor.agent.Disturbance`
 ``roco/counters/ask``                        any put here makes every agent publish its counters
-``roco/counters/report/<agent>``             an agent's counters (JSON, ``Agent.counters_report``)
+``roco/counters/report/<agent>``             an agent's counters (JSON, ``Engine.counters_report``)
 ``roco/recorder/flags``                      a query here: the traffic recorder answers with the
                                              live requirement flags of its run (JSON,
                                              services/recorder/flags.py ``FlagsReply``)

@@ -9,7 +9,7 @@ keeps the answer; each table holds at most :data:`MAX_ENTRIES` answers (a peer t
 ever new keys makes the agent look those up every time, as before, and grows nothing).
 
 Only answers are kept, never a decision about one communicate: every check the runtime makes
-(services/runtime/agent.py) still runs on each communicate, on these answers. Among them are
+(services/runtime/engine.py) still runs on each communicate, on these answers. Among them are
 the checks of a received communicate that depend only on its sender, channel, performative,
 protocol, language, ontology and encoding (services/runtime/intake.py ``screen``): kept per
 such tuple, their answer is the same for every communicate of it; its content is decoded and

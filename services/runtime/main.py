@@ -5,7 +5,7 @@ and a container: ``ROCO_ROUTER`` (comma-separated Zenoh endpoints, default
 ``tcp/127.0.0.1:7447``), ``ROCO_RUN_DIR`` (run folder; logs go to stderr otherwise),
 ``ROCO_SPEC`` (specification file), ``ROCO_LOG_LEVEL``, ``ROCO_LOG_STDOUT`` (1: the log on
 standard output too, :func:`setup_logging`), ``ROCO_READY_FILE`` (written once the agent is
-ready, ``Agent.ready``; removed at its start and stop: shared/ready_file.py), ``ROCO_FAULTS``
+ready, ``Engine.ready``; removed at its start and stop: shared/ready_file.py), ``ROCO_FAULTS``
 (fault settings, JSON; docs/faults.md), ``ROCO_SECURITY`` (credentials folder: the agent
 authenticates as itself; docs/security.md). The Zenoh transport is always wrapped in the fault
 layer (:class:`~services.runtime.faults.FaultyTransport`) so that ``roco fault`` can reach
@@ -160,14 +160,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"roco: {text}", file=sys.stderr)
         return 2
 
+    engine = agent.engine
+
     def on_signal(signum: int, frame: FrameType | None) -> None:
-        agent.stop()
+        engine.stop()
 
     deadline = threading.Timer(LOST_GRACE_S, os._exit, (EXIT_LOST,))
     deadline.daemon = True
 
     def on_lost(why: str) -> None:  # a receiving thread, just before it ends
-        agent.stop()
+        engine.stop()
         with contextlib.suppress(RuntimeError):  # started by another receiving thread
             deadline.start()
 
@@ -175,11 +177,11 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     zenoh_transport.on_lost = on_lost
     ready = ready_file()
-    agent.on_ready = functools.partial(say_ready, ready)
-    agent.bind()
+    engine.on_ready = functools.partial(say_ready, ready)
+    engine.bind()
     logging.getLogger(name).info("started (pid %d)", os.getpid())
     try:
-        agent.run()
+        engine.run()
     except Exception:  # the log says why the agent stopped (the launcher names the log)
         logging.getLogger(name).exception("stopped by an error")
         raise

@@ -47,7 +47,7 @@ class Interface(Protocol):
     """What :class:`PersonFace` uses of its agent (services/runtime/agent.py ``Agent``)."""
 
     @property
-    def transport(self) -> Any: ...
+    def engine(self) -> Any: ...  # its ``transport`` (services/runtime/engine.py ``Engine``)
 
     @property
     def log(self) -> logging.Logger | logging.LoggerAdapter[logging.Logger]: ...
@@ -109,8 +109,9 @@ class PersonFace:
         """Hear ``roco/human/in`` (each line posted to the agent as a :class:`HumanInput`; a
         payload over :data:`MAX_INPUT_BYTES` or not a HumanInput is logged and dropped) and,
         on a Zenoh transport, answer ``roco/human/outcomes`` with :attr:`told`."""
-        self.agent.transport.subscribe(keys.HUMAN_IN, self._on_line)
-        if (serve := getattr(self.agent.transport, "serve", None)) is not None:  # a ZenohTransport
+        transport = self.agent.engine.transport
+        transport.subscribe(keys.HUMAN_IN, self._on_line)
+        if (serve := getattr(transport, "serve", None)) is not None:  # a ZenohTransport
             serve(keys.HUMAN_OUTCOMES, self.told.answer)  # on Zenoh's thread: encoded under the GIL
 
     def _on_line(self, key: str, payload: bytes) -> None:

@@ -10,7 +10,7 @@ one that ends otherwise (an exception outside the callback's, or a BaseException
 callback) is logged and told to ``ZenohTransport.on_lost``, on which an agent's process ends
 (services/runtime/main.py), to be started again like any crashed agent.
 A communicate may be taken in there by an idle agent, whose step then puts its answers from
-that thread (services/runtime/agent.py ``Agent._take_here``): a put on a key whose publisher is
+that thread (services/runtime/engine.py ``Engine._take_here``): a put on a key whose publisher is
 declared, a few communicates at a time. A put there may wait for room in a full link, and
 Zenoh goes on reading the links meanwhile: zenoh-python's own callback threads have a FIFO of
 256 places, and two sessions streaming to each other while answering from those threads
@@ -86,7 +86,7 @@ the last one — from which a subscriber learns of a communicate it missed at th
 
 class Transport(Protocol):
     """What the runtime needs of a transport. Three capabilities are optional, looked up by
-    name (services/runtime/agent.py): ``inline_receive`` (True: subscribers are
+    name (services/runtime/engine.py): ``inline_receive`` (True: subscribers are
     called back on threads of the transport's own, never inside ``publish``, so an idle agent
     may run its step there; without it every input goes to the agent's own thread),
     ``more_waiting() -> bool`` (inside such a callback: another sample waits behind this one;
@@ -122,7 +122,7 @@ class ZenohTransport:
     inline_receive = True
     """Subscribers are called back on receiving threads of their own, never inside
     :meth:`publish`: an idle agent may take a communicate in on the thread it arrived on
-    (``Agent._take_here``)."""
+    (``Engine._take_here``)."""
 
     def __init__(
         self,
@@ -350,7 +350,7 @@ class ZenohTransport:
     def more_waiting(self) -> bool:
         """On a receiving thread of :meth:`subscribe`, inside its callback: whether another
         sample had arrived behind the one being called back (a burst: the agent takes them in
-        together on its own thread, ``Agent._on_payload``). False on any other thread."""
+        together on its own thread, ``Engine._on_payload``). False on any other thread."""
         return bool(getattr(self._receiving_here, "more", False))
 
     def announce(self, key: str) -> None:

@@ -38,11 +38,15 @@ from __future__ import annotations
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import msgspec
 
 from services.spec.model import default_spec
 from velma.world.mode import WORLD_SERVICE
+
+if TYPE_CHECKING:
+    from services.spec.model import SystemSpec
 
 LIBRARY = Path(__file__).parent / "library"
 """The scenarios shipped with roco (``roco scenario --list``)."""
@@ -269,3 +273,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 def library() -> dict[str, Scenario]:
     """Every scenario in the library, by file stem."""
     return {p.stem: load_scenario(p) for p in sorted(LIBRARY.glob("*.toml"))}
+
+
+def missing_kitchen_agents(system: SystemSpec) -> tuple[str, ...]:
+    """The Robot Companion's agents ``system`` lacks, whose names the scenarios' steps use:
+    none for the kitchen, also grown by agents of its own (docs/spec.md's walk-through)."""
+    return tuple(a for a in default_spec().launch_order if a not in system.agent_names)

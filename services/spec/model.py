@@ -464,8 +464,8 @@ def interface(spec: SystemSpec, agent: str) -> Interface:
 def asked(spec: SystemSpec, agent: str) -> tuple[str, ...]:
     """The agents ``agent`` asks: the other end of each channel on which it initiates a protocol,
     each once, in the channels' order; an external role (``x_fipa``) is not an agent of the
-    platform and is left out. An agent is ready once it has seen these (services/runtime/agent.py
-    ``Agent.ready``)."""
+    platform and is left out. An agent is ready once it has seen these (services/runtime/engine.py
+    ``Engine.ready``)."""
     found: list[str] = []
     for ch in spec.channels:
         if agent not in ch.ends or not any(cp.initiator == agent for cp in ch.protocols):

@@ -139,7 +139,7 @@ def _self_attributes(node: ast.AST) -> set[str]:
 def runtime_names() -> frozenset[str]:
     """The names an agent inherits from the runtime's :class:`~services.runtime.agent.Agent`:
     its class attributes and methods, and the attributes its methods set on ``self`` (read from
-    its source: ``self._ended = False`` in ``__init__``), dunders left out."""
+    its source: ``self.roles = …`` in ``__init__``), dunders left out."""
     names = set(dir(Agent))
     tree = ast.parse(Path(inspect.getfile(Agent)).read_text())
     names |= _self_attributes(next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Agent"))
@@ -150,8 +150,8 @@ def shadowing(agent: str, cls: type) -> list[str]:
     """One problem per name of the runtime's :class:`~services.runtime.agent.Agent` that agent
     ``agent``'s class ``cls`` (or a base of its own, not the runtime's) defines again, but those
     it may (``OVERRIDABLE``): an agent's attribute or method that replaces one of the
-    runtime's breaks it, often far from the cause (a helper ``_ended`` made the runtime call a
-    bool)."""
+    runtime's breaks it, often far from the cause (a helper ``_ended`` once made the runtime
+    call a bool)."""
     runtime = runtime_names() - OVERRIDABLE
     problems = []
     for klass in cls.__mro__:

@@ -58,8 +58,8 @@ def test_holds_when_a_ta_disappears_and_publishes_state() -> None:
     a_ta.announce(keys.alive_key("a_ta"))
     agent = Ex(bus.transport())
     assert agent.commanders == ("a_ta",)  # from the specification's C5
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    thread = threading.Thread(target=agent.engine.run, daemon=True)
     thread.start()
     try:
         first = states.get(timeout=10)
@@ -73,7 +73,7 @@ def test_holds_when_a_ta_disappears_and_publishes_state() -> None:
         assert state.holding == "a_ta lost"
         assert agent.counters["holds"] == 1
     finally:
-        agent.stop()
+        agent.engine.stop()
         thread.join(10)
 
 

@@ -52,13 +52,13 @@ def linked_ag_ex(
     bus = MemoryBus()
     a_ta = Peer(bus, "a_ta", "ag_ex", "C5")
     agent = Ex(bus.transport())
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    thread = threading.Thread(target=agent.engine.run, daemon=True)
     thread.start()
     try:
         yield made, a_ta, agent
     finally:
-        agent.stop()
+        agent.engine.stop()
         thread.join(TIMEOUT_S)
 
 

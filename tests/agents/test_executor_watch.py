@@ -82,15 +82,15 @@ def served(
         token = bus.transport()
         token.announce(keys.alive_key("a_ta"))
         agent = Ex(bus.transport())
-        agent.bind()
-        thread = threading.Thread(target=agent.run, daemon=True)
+        agent.engine.bind()
+        thread = threading.Thread(target=agent.engine.run, daemon=True)
         thread.start()
         running.append((agent, thread))
         return a_ta, fake, token
 
     yield start
     for agent, thread in running:
-        agent.stop()
+        agent.engine.stop()
         thread.join(TIMEOUT_S)
 
 
@@ -212,6 +212,6 @@ def test_a_viewer_that_wants_no_camera_gets_none_though_the_world_state_is_copie
             return fake
 
     agent = Ex(MemoryBus().transport())
-    agent.bind()
+    agent.engine.bind()
     agent.setup()
     assert agent.rerun is HOOKS.sink and not HOOKS.sink.camera.is_set()

@@ -112,8 +112,8 @@ def _ag_ex(executor: Running) -> tuple[MemoryBus, ExecutorAgent, threading.Threa
             return executor
 
     agent = Ex(bus.transport())
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    thread = threading.Thread(target=agent.engine.run, daemon=True)
     thread.start()
     return bus, agent, thread
 
@@ -161,7 +161,7 @@ def test_a_cancel_of_a_running_command_is_answered_inform_halted() -> None:
         assert (again.performative, again.in_reply_to) == (Performative.NOT_UNDERSTOOD, "can-2")
         assert agent.counters["halts"] == 1
     finally:
-        agent.stop()
+        agent.engine.stop()
         thread.join(10)
 
 
@@ -189,7 +189,7 @@ def test_a_command_that_could_not_be_halted_fails_the_cancel_with_its_result() -
         )
         assert agent.counters["halts"] == 0
     finally:
-        agent.stop()
+        agent.engine.stop()
         thread.join(10)
 
 
@@ -208,7 +208,7 @@ def test_a_cancel_of_an_answered_command_gets_failure() -> None:
         assert b"nothing to cancel" in late.content
         assert agent.counters["halts"] == 0
     finally:
-        agent.stop()
+        agent.engine.stop()
         thread.join(10)
 
 

@@ -147,7 +147,7 @@ def test_a_query_cancelled_before_a_km_answers_ends_as_cancelled() -> None:
     bus = MemoryBus()
     km = KnowledgeManager(bus.transport())
     a_hi = Peer(bus, "a_hi", "a_km", "C7")
-    km.bind()
+    km.engine.bind()
     a_hi.send(P.QUERY_IF, "fipa-query", "ask", SparqlQuery(query="ASK { ?s ?p ?o }"))
     a_hi.send(P.CANCEL, "fipa-query", "ask")
     with running(km):
@@ -199,7 +199,7 @@ def test_a_cancel_that_waits_with_its_opening_is_answered(
     bus = MemoryBus()
     agent = cls(bus.transport())
     them = Peer(bus, peer, agent.name, channel)
-    agent.bind()
+    agent.engine.bind()
     them.send(opening, protocol, "cancelled", term)
     cancel = them.send(P.CANCEL, protocol, "cancelled", term if protocol == "fipa-subscribe" else None)
     with running(agent):
@@ -245,7 +245,7 @@ def test_a_participant_refuses_an_opening_that_carries_nothing(
     bus = MemoryBus()
     agent = cls(bus.transport())
     them = Peer(bus, peer, agent.name, channel)
-    agent.bind()
+    agent.engine.bind()
     them.send(opening, protocol, "empty")
     if cancelled:
         them.send(P.CANCEL, protocol, "empty")
@@ -357,7 +357,7 @@ def test_a_ta_follows_a_coordinate_conversation_through_its_cancels_and_repeated
     a_co = Peer(bus, "a_co", "a_ta", "C1")
     plan = HierarchicalPlan(plan_id="p1", task_id="t1", root=PlanNode(name="nothing"))
     halt = SWStatus(state=SWState.TERMINATING, plan_id="p1", reason="cancelled")
-    ta.bind()
+    ta.engine.bind()
     a_co.send(P.REQUEST, "coordinate", "plan", plan)
     a_co.send(P.CANCEL, "coordinate", "plan", halt)
     states = []

@@ -25,7 +25,7 @@ def test_a_status_query_agreed_and_unanswered_is_cancelled_when_a_hi_stops(then:
         query = a_co.next(P.QUERY_REF)
         assert query.conversation_id is not None
         answer(a_co, query, P.AGREE)  # agreed: the status comes later
-        hi.stop()
+        hi.engine.stop()
         cancel = a_co.next(P.CANCEL, cid=query.conversation_id)
         if then is P.AGREE:  # the participant's agree again, sent before the cancel reached it
             answer(a_co, query, P.AGREE)
@@ -54,6 +54,6 @@ def test_a_vocabulary_query_agreed_and_unanswered_is_cancelled_when_a_hi_stops()
         query = a_km.next(P.QUERY_REF)
         assert query.conversation_id is not None
         answer(a_km, query, P.AGREE)
-        hi.stop()
+        hi.engine.stop()
         a_km.next(P.CANCEL, cid=query.conversation_id)
         answer(a_km, query, P.AGREE)  # crossing the cancel

@@ -188,9 +188,9 @@ def test_a_restarted_a_ta_withdraws_the_hand_then_observes_then_reports_replan(
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     scene = Observation(stamp=3.0, objects=(ObjectObservation(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
     w = restarted_in("pour/fetch_bowl/take/grasp", tmp_path, scene)
-    assert w.agent.fsm.next_state("idle") == "finished"
-    w.agent.fsm.states["finished"].on_enter()
-    w.agent._dispatch()
+    assert w.agent.engine.fsm.next_state("idle") == "finished"
+    w.agent.engine.fsm.states["finished"].on_enter()
+    w.agent.engine.dispatch()
 
     def to_ag_ex() -> list[Communicate]:
         return [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
@@ -225,7 +225,7 @@ def test_a_withdrawal_ag_ex_refuses_stops_and_the_state_is_still_reported(
 ) -> None:
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     w = restarted_in("pour/fetch_bowl/take/reach", tmp_path, Observation(stamp=3.0, objects=()))
-    w.agent.fsm.states["finished"].on_enter()
+    w.agent.engine.fsm.states["finished"].on_enter()
     w.step("finished")
     release = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"][-1]
     w.deliver(
@@ -258,7 +258,7 @@ def test_a_restarted_a_ta_finishes_the_set_down_tells_a_km_and_reports(
 ) -> None:
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     w = restarted_in("pour/place_bowl/set_down/release", tmp_path, Observation(stamp=3.0, objects=()))
-    w.agent.fsm.states["finished"].on_enter()
+    w.agent.engine.fsm.states["finished"].on_enter()
     commands: list[type] = []
     for kind in (Release, MoveTool, MoveTool, Observe):
         w.step("finished")
@@ -290,7 +290,7 @@ def test_a_withdrawal_after_an_earlier_plan_was_confirmed_is_not_taken_as_confir
     w = restarted_in("pour/place_bowl/set_down/release", tmp_path, Observation(stamp=3.0, objects=()))
     assert w.agent.plan_request is not None
     w.agent.reports._confirmed.add(w.agent.plan_request)  # as a confirmation from before would leave it
-    finished = w.agent.fsm.states["finished"]
+    finished = w.agent.engine.fsm.states["finished"]
     finished.on_enter()
     assert w.agent.withdrawing and not finished.terminal()
     w.step("finished")
@@ -307,7 +307,7 @@ def test_between_two_leaves_the_next_one_is_kept_as_the_step(
     monkeypatch.setenv(ENV_STATE_DIR, str(tmp_path))
     w = restarted_in("pour/place_bowl/set_down/put", tmp_path, Observation(stamp=3.0, objects=()))
     ta = w.agent
-    ta.state, ta.outcome, ta.step, ta.index = "running", None, None, INDEX["clear"]
+    ta.engine.state, ta.outcome, ta.step, ta.index = "running", None, None, INDEX["clear"]
     ta.persist()
     (kept,) = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptConversations).conversations
     assert msgspec.json.decode(kept.data, type=PlanNote).step == LEAVES[INDEX["clear"]][0]

@@ -74,7 +74,7 @@ def test_a_new_subscription_gets_the_asserted_changes_then_a_fresh_observation(
     # the plan's symbolic changes: the jar taken from the cabinet, then put on the table
     w.agent._assert(Assert(subject="jar", relation="heldBy", object="right_gripper"))
     w.agent._assert(Assert(subject="jar", relation="on", object="table"))
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     assert len(updates(w, "km-1")) == 3
     n_requests = len(w.mine(P.REQUEST))
 

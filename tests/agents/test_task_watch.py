@@ -46,7 +46,7 @@ def test_a_watch_a_km_asks_for_reaches_ag_ex_and_its_frames_reach_a_km_only() ->
     w.agent.setup()
     ag_ex = bus.transport()
     ag_ex.announce(keys.alive_key("ag_ex"))  # the role subscribes to ag_ex once it is there
-    w.agent._acquire()
+    w.agent.engine.acquire()
     subscribe(w, "km-env")
     ag_ex_answers(w, observe_request(w), Observation(stamp=1.0, objects=()))
     w.step("idle")

@@ -12,7 +12,7 @@ from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[2]
 MOST = 85
-"""Functions of complexity ≥ 11 (Agent._follow fell below 11 when the runtime's hot path was split)."""
+"""Functions of complexity ≥ 11 (SendChecks.follow fell below 11 when the runtime's hot path was split)."""
 
 
 def _check_complexity() -> ModuleType:

@@ -2,10 +2,12 @@
 "How it is built"), and no package imports another package that imports it back.
 
 A package is a folder directly under ``shared/``, ``services/`` or ``velma/`` (or a module
-there: ``services/cli.py``), and each agent's folder under ``services/agents/``. The agents are
-those of the specification, the tools every other package under ``services/`` above the bottom
-layers: a new one is checked without an edit here. Every
-``import`` of roco code counts, also those inside functions and under ``TYPE_CHECKING``.
+there: ``services/fleet_state.py``), and each agent's folder under ``services/agents/``. The
+agents are those of the specification, the tools every other package under ``services/`` above
+the bottom layers (services/cli/, the command line, among them: tests/architecture/
+test_cli_assembles.py keeps every tool from importing it): a new one is checked without an edit
+here. Every ``import`` of roco code counts, also those inside functions and under
+``TYPE_CHECKING``.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ AGENTS = tuple(sorted({a.implementation.split(":")[0].split(".")[2] for a in def
 
 
 def _tools() -> tuple[str, ...]:
-    """Every package under services/ (a folder, or a module such as services/cli.py) that is
+    """Every package under services/ (a folder, or a module such as services/fleet_state.py) that is
     neither a bottom layer nor an agent nor services/agents itself."""
     found = set()
     for path in (ROOT / "services").iterdir():

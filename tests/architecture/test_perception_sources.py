@@ -16,7 +16,7 @@ MAY_IMPORT_TRUTH = {
     "velma/executor/perception_log.py",  # the log beside the camera's estimate
     "velma/executor/camera.py",  # builds the log's truth
     "velma/executor/checkpoint.py",  # observe_scene: judging a run's final world (tools)
-    "services/control/talk_cli.py",  # the names of the movable objects for `roco disturb`
+    "services/cli/disturb.py",  # the names of the movable objects for `roco disturb`
     "services/bench/scene.py",  # the kitchen the planning benchmark gives a_km (no robot runs)
 }
 BODY_STATE = {"xpos", "xquat", "xmat", "xipos", "geom_xpos", "geom_xmat", "site_xpos", "site_xmat", "qpos"}

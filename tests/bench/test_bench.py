@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import typer
 
-from services.bench import cli, parts, quiet, report
+from services.bench import parts, quiet, report, runner
 from services.bench.gateway import BurstFigures, GatewayFigures, LoadFigures, WorstRow
 from services.bench.jade import JadeFigures
 from services.bench.messaging import (
@@ -346,10 +346,12 @@ def test_the_reading_section_shows_each_shape_and_length() -> None:
 
 
 def test_only_takes_the_stop_and_reading_parts_in_their_order() -> None:
-    assert cli._parts("reading, stop") == ["stop", "reading"]
-    assert cli._parts(None)[-3:] == ["gateway", "stop", "reading"]
+    from services.cli.bench import _parts
+
+    assert _parts("reading, stop") == ["stop", "reading"]
+    assert _parts(None)[-3:] == ["gateway", "stop", "reading"]
     with pytest.raises(typer.BadParameter, match="unknown part"):
-        cli._parts("stop,halt")
+        _parts("stop,halt")
 
 
 def _fixed_figures_document() -> str:
@@ -456,7 +458,7 @@ def _fixed_figures_document() -> str:
             ["before messaging: waited 1 s; quiet (0 % busy, 0 % stolen over the last 1 s)"], 90
         ),
     ]
-    return report.document(run_lines, targets, sections, cli.NOTES.read_text())
+    return report.document(run_lines, targets, sections, runner.NOTES.read_text())
 
 
 HISTORY_HEADING = re.compile(
@@ -516,7 +518,7 @@ def test_a_report_from_fixed_figures_states_the_method_and_the_present_only() ->
 
 
 def test_the_hand_written_method_is_short() -> None:
-    notes = cli.NOTES.read_text()
+    notes = runner.NOTES.read_text()
     assert notes.startswith("## Method and where the time goes\n")
     assert len(notes.split()) <= 1500
 

@@ -125,7 +125,7 @@ def test_roco_bench_prints_one_line_and_no_figure_for_a_refused_set_up(
 ) -> None:
     from typer.testing import CliRunner
 
-    from services.bench import cli
+    from services.cli.bench import bench_app
 
     def refused(quick: bool) -> object:
         raise SetupRefused(
@@ -134,7 +134,7 @@ def test_roco_bench_prints_one_line_and_no_figure_for_a_refused_set_up(
 
     monkeypatch.setattr(parts, "planning", refused)
     out = tmp_path / "b.md"
-    got = CliRunner().invoke(cli.bench_app, ["--only", "planning", "--quick", "--out", str(out)])
+    got = CliRunner().invoke(bench_app, ["--only", "planning", "--quick", "--out", str(out)])
     assert got.exit_code == 1
     said = [line for line in got.output.splitlines() if line.startswith("roco: ")]
     assert said == [

@@ -36,8 +36,8 @@ def test_profile_runtime_prints_no_figure_when_a_communicate_is_not_understood(
     hand = profile_runtime.hand
 
     def garbling(src: Any, dst: Any) -> None:  # the first communicate handed over is cut short
-        key, payload = src.transport.out[0]
-        src.transport.out[0] = (key, payload[:-3])
+        key, payload = src.engine.transport.out[0]
+        src.engine.transport.out[0] = (key, payload[:-3])
         monkeypatch.setattr(profile_runtime, "hand", hand)
         hand(src, dst)
 

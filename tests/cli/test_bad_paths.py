@@ -328,7 +328,7 @@ def test_run_takes_record_and_view_as_scenario_does(tmp_path: Path, monkeypatch:
     def run_scenario(sc: object, runs_dir: Path, **kwargs: object) -> None:
         given.append(kwargs)
 
-    monkeypatch.setattr("services.scenario.cli._run_scenario", run_scenario)
+    monkeypatch.setattr("services.cli.run.run_scenario", run_scenario)
     for args in ([], ["--no-record"], ["--view"], ["--no-record", "--view"]):
         code, lines = invoke(["run", "pour the jar into the bowl", *args, "--runs-dir", str(tmp_path)])
         assert code == 0, lines

@@ -55,7 +55,7 @@ def docker(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Docker:
     monkeypatch.setattr("services.deploy.engine.run_command", fake)
     monkeypatch.setattr("shutil.which", lambda name: f"/usr/bin/{name}")
     monkeypatch.setattr(
-        "services.control.cli._save_compose_counters", lambda *a: " (counters not asked here)"
+        "services.control.stop.save_compose_counters", lambda *a: " (counters not asked here)"
     )
     monkeypatch.delenv("ROCO_COMPOSE_PROJECT", raising=False)
     return fake

@@ -57,12 +57,13 @@ def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(
     """``roco hosts down`` of a fleet whose two hosts are stood in for (no root needed): its
     agents stop, the recorder confirms the record, the routers end with the hosts, the report
     is written."""
-    import services.hosts.cli as hosts_cli
+    from services.cli.hosts import hosts_app
+    from services.hosts.state import HOSTS_FILE, HostsState
 
     run_dir, _ = fleet
     state = json.loads((tmp_path / ".fleet.json").read_text())
     router = state["pids"]["router"]
-    (tmp_path / hosts_cli.HOSTS_FILE).write_text(
+    (tmp_path / HOSTS_FILE).write_text(
         json.dumps(
             {"tag": "t", "subnet": 1, "maker": os.getpid(), "run_dir": str(run_dir)}
             | {"endpoint": state["endpoint"], "shaping": "", "how": ""}
@@ -80,8 +81,8 @@ def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(
         def destroy(self) -> None:  # what the namespaces' removal ends: the router
             os.kill(router, signal.SIGTERM)
 
-    monkeypatch.setattr(hosts_cli, "_pair", lambda state: Pair())
-    result = CliRunner().invoke(hosts_cli.hosts_app, ["down", "--runs-dir", str(tmp_path)])
+    monkeypatch.setattr(HostsState, "pair", lambda state: Pair())
+    result = CliRunner().invoke(hosts_app, ["down", "--runs-dir", str(tmp_path)])
     assert result.exit_code == 0, result.output
     stopping, final = said(result.output)
     assert stopping.endswith("; recorder: traffic record complete; routers; both hosts removed"), stopping
@@ -93,7 +94,7 @@ def test_hosts_down_confirms_the_traffic_record_as_roco_down_does(
     assert info["ended"] is not None and info["detail"] == "no command was given"
     assert (run_dir / "report.md").is_file()
     assert not (run_dir / "link.jsonl").exists()  # the stand-in's link has no counters to record
-    assert not (tmp_path / ".fleet.json").exists() and not (tmp_path / hosts_cli.HOSTS_FILE).exists()
+    assert not (tmp_path / ".fleet.json").exists() and not (tmp_path / HOSTS_FILE).exists()
     stopped = [pid for name, pid in state["pids"].items() if name != "router"]
     assert not [pid for pid in stopped if running(pid)]
 

@@ -17,13 +17,13 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 import services.cli as cli
+from services.cli.run_env import live_watch
 from services.fleet.launcher import AGENT_ORDER
 from services.live.state import LiveState
 from services.live.view import LiveView
 from services.live.watch import LiveWatch
 from services.runtime import keys
 from services.runtime.session import open_client
-from services.scenario.run_env import live_watch
 from services.spec.model import default_spec
 from shared.fipa_codec import Performative, encode
 from shared.fipa_codec.languages import extend

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 import typer
 
-from services.control.status_cli import _flag_lines
+from services.cli.run import exit_on_failure
+from services.cli.status import _flag_lines
 from services.recorder.flags import FlagsReply, append_flag
-from services.scenario.cli import _exit_on_failure
 from tests.support.flags import a_flag
 
 FLAG = a_flag()
@@ -21,10 +21,10 @@ FLAG = a_flag()
 def test_a_flag_makes_a_run_that_went_well_exit_1_with_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    _exit_on_failure("", True, "the task succeeded", tmp_path)  # no flag: no exit
+    exit_on_failure("", True, "the task succeeded", tmp_path)  # no flag: no exit
     append_flag(tmp_path, FLAG)
     with pytest.raises(typer.Exit) as ended:
-        _exit_on_failure("", True, "the task succeeded", tmp_path)
+        exit_on_failure("", True, "the task succeeded", tmp_path)
     assert ended.value.exit_code == 1
     (line,) = capsys.readouterr().err.splitlines()
     assert line.startswith(
@@ -32,7 +32,7 @@ def test_a_flag_makes_a_run_that_went_well_exit_1_with_one_line(
     )
     assert line.endswith(f"(w) (run folder {tmp_path})")
     with pytest.raises(typer.Exit):
-        _exit_on_failure("s", False, "#1 failed", tmp_path)
+        exit_on_failure("s", False, "#1 failed", tmp_path)
     (line,) = capsys.readouterr().err.splitlines()
     assert line.startswith("roco: scenario “s” did not go as expected: #1 failed; requirement R3.3 violated")
 

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 import typer
 
+from services.cli.report import finish_report
+from services.cli.run import exit_on_failure
 from services.runtime.run_folder import RunInfo, write_run_info
-from services.scenario.cli import _exit_on_failure
-from services.spec_check.report_cli import finish_report
 
 RAISED = "2 handler errors in a_ta: see logs/a_ta.log"
 
@@ -45,9 +45,9 @@ def test_a_clean_run_says_nothing_of_errors(tmp_path: Path, capsys: pytest.Captu
 def test_an_agent_that_raised_makes_a_run_that_went_well_exit_1(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    _exit_on_failure("", True, "the task succeeded", tmp_path, "")  # nothing raised: no exit
+    exit_on_failure("", True, "the task succeeded", tmp_path, "")  # nothing raised: no exit
     with pytest.raises(typer.Exit) as ended:
-        _exit_on_failure("", True, "the task succeeded", tmp_path, RAISED)
+        exit_on_failure("", True, "the task succeeded", tmp_path, RAISED)
     assert ended.value.exit_code == 1
     (line,) = capsys.readouterr().err.splitlines()
     assert line == f"roco: agents raised: {RAISED} (run folder {tmp_path})"

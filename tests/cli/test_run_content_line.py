@@ -1,6 +1,6 @@
 """`roco run`'s last line says whose count of the spheres in the bowl it gives: the robot's
 (a_ta's last look) and, when the simulated world left its final scene, the simulation's beside
-it (services/report/content.py ``content_line``; services/spec_check/report_cli.py). A run
+it (services/report/content.py ``content_line``; services/spec_check/run_report.py). A run
 folder with a planted record and final scene, no fleet."""
 
 from __future__ import annotations
@@ -10,10 +10,11 @@ from pathlib import Path
 
 import pytest
 
+from services.cli.report import finish_report
 from services.report.content import content_line
 from services.report.model import ContentOutcome
 from services.runtime.run_folder import RunInfo, write_run_info
-from services.spec_check.report_cli import _content_clause, finish_report
+from services.spec_check.run_report import content_clause
 from shared.fipa_codec.languages.common import Pose
 from shared.fipa_codec.languages.l_sd import ObjectObservation, Observation
 from tests.report.conftest import RunBuilder, write_traffic
@@ -80,7 +81,7 @@ def test_the_line_s_outcome_takes_the_simulation_s_count_from_the_world_s_final_
     info.commands = commands
     if in_bowl is not None:
         plant_final_scene(tmp_path, in_bowl)
-    assert _content_clause(tmp_path, info, build_report(tmp_path).content) == said
+    assert content_clause(tmp_path, info, build_report(tmp_path).content) == said
 
 
 def test_roco_run_s_last_line_says_whose_count_it_gives(

@@ -1,4 +1,4 @@
-"""``roco spec names [--check] [--file F] [--spec S]`` (services/cli.py): writes the names
+"""``roco spec names [--check] [--file F] [--spec S]`` (services/cli/spec.py): writes the names
 module the specification gives, or only says whether a file is it — exit 0, 1 with one line
 saying how it differs, 2 for a specification or file that cannot be read."""
 

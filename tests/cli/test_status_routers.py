@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from services.control.status_cli import _router_names
+from services.control.status import router_names
 
 BRAIN, BRAIN_AGAIN, ROBOT, LOCAL = "a1b2c3d4e5f60718", "0f1e2d3c4b5a6978", "99887766554433221", "5e5e5e5e"
 
@@ -27,14 +27,14 @@ def test_the_two_hosts_routers_are_named_by_their_host_across_restarts(tmp_path:
     )
     _log(tmp_path, "router_robot", f"roco router {ROBOT} listening on tls/127.0.0.1:7447; access control")
     _log(tmp_path, "a_hi", f"roco router {LOCAL} listening on tcp/x:1")  # not a router's log
-    assert _router_names(tmp_path) == {BRAIN: "brain", BRAIN_AGAIN: "brain", ROBOT: "robot"}
+    assert router_names(tmp_path) == {BRAIN: "brain", BRAIN_AGAIN: "brain", ROBOT: "robot"}
 
 
 def test_a_single_router_is_named_by_its_endpoint(tmp_path: Path) -> None:
     _log(tmp_path, "router", f"roco router {LOCAL} listening on tcp/127.0.0.1:7447; access control from S")
-    assert _router_names(tmp_path) == {LOCAL: "at tcp/127.0.0.1:7447"}
+    assert router_names(tmp_path) == {LOCAL: "at tcp/127.0.0.1:7447"}
 
 
 def test_without_a_run_folder_no_router_is_named(tmp_path: Path) -> None:
-    assert _router_names(None) == {}
-    assert _router_names(tmp_path / "gone") == {}
+    assert router_names(None) == {}
+    assert router_names(tmp_path / "gone") == {}

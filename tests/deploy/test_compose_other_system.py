@@ -25,7 +25,7 @@ import msgspec
 import pytest
 from typer.testing import CliRunner
 
-from services.deploy.cli import deploy_app
+from services.cli.deploy import deploy_app
 from services.deploy.compose import BUILD, COMPOSE_FILE, IMAGES, agent_extras, render
 from services.deploy.layout import KITCHEN, SYSTEM_IN, LayoutError, layout_for
 from services.security import certs

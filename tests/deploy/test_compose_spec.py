@@ -15,7 +15,7 @@ import msgspec
 import pytest
 from typer.testing import CliRunner
 
-from services.deploy.cli import deploy_app
+from services.cli.deploy import deploy_app
 from services.deploy.compose import (
     AGENT_EXTRAS,
     COMPOSE_FILE,

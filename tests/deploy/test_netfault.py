@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from services.cli.deploy import deploy_app
 from services.deploy import netfault
-from services.deploy.cli import deploy_app
 from services.deploy.compose import COMPOSE_FILE
 from services.fault.compose import COMPOSE_SERVICES, NETFAULT_FILE
 from services.spec.model import default_spec

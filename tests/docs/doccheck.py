@@ -558,8 +558,8 @@ def links(text: str) -> list[Link]:
 
 
 class Repository:
-    """The files of a repository (tracked, or new and not ignored: ``git ls-files``), and the
-    anchors of its Markdown files, read once each."""
+    """The files of a repository (tracked, or new and not ignored: ``git ls-files``; those the
+    work tree still has), and the anchors of its Markdown files, read once each."""
 
     def __init__(self, root: Path) -> None:
         self.root = root.resolve()
@@ -572,7 +572,9 @@ class Repository:
                 check=True,
                 timeout=30,
             ).stdout.decode()
-            self.files: set[Path] | None = {self.root / p for p in listed.split("\0") if p}
+            # a tracked file deleted in the work tree (not yet committed) is none of its files
+            listed_files = (self.root / p for p in listed.split("\0") if p)
+            self.files: set[Path] | None = {f for f in listed_files if f.exists() or f.is_symlink()}
         except (OSError, subprocess.SubprocessError):
             self.files = None  # not a git checkout: the file system decides
         self.dirs = {d for f in self.files or () for d in f.parents}

@@ -12,9 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
-import typer
 
-from services.bench import cli, readme_figures, report, run_header
+from services.bench import readme_figures, report, run_header, runner
 from services.bench.bench_docs import FiguresError
 from services.bench.readme_figures import BENCHMARKS, LOOP, POUR_SEEDS
 
@@ -192,12 +191,12 @@ def test_a_header_without_the_cpu_line_is_refused() -> None:
 
 
 def test_only_a_whole_run_to_the_default_output_writes_readme() -> None:
-    every = list(cli.PARTS)
-    assert cli.writes_readme(every, False, cli.DEFAULT_OUT, {}) is None
-    assert cli.writes_readme(["codec"], False, cli.DEFAULT_OUT, {}) is not None
-    assert cli.writes_readme(every, True, cli.DEFAULT_OUT, {}) is not None
-    assert cli.writes_readme(every, False, Path("/tmp/b.md"), {}) is not None
-    assert cli.writes_readme(every, False, cli.DEFAULT_OUT, {"task": "RuntimeError: x"}) is not None
+    every = list(runner.PARTS)
+    assert runner.writes_readme(every, False, runner.DEFAULT_OUT, {}) is None
+    assert runner.writes_readme(["codec"], False, runner.DEFAULT_OUT, {}) is not None
+    assert runner.writes_readme(every, True, runner.DEFAULT_OUT, {}) is not None
+    assert runner.writes_readme(every, False, Path("/tmp/b.md"), {}) is not None
+    assert runner.writes_readme(every, False, runner.DEFAULT_OUT, {"task": "RuntimeError: x"}) is not None
 
 
 def test_a_partial_run_leaves_readme_alone(tmp_path: Path) -> None:
@@ -229,18 +228,16 @@ def test_a_whole_run_writes_readme_and_says_why_not_when_it_cannot(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     root = _copy(tmp_path)
-    monkeypatch.setattr(cli, "ROOT", root)
-    monkeypatch.setattr(cli, "DEFAULT_OUT", root / BENCHMARKS)
+    monkeypatch.setattr(runner, "ROOT", root)
+    monkeypatch.setattr(runner, "DEFAULT_OUT", root / BENCHMARKS)
     row = _readme_row(root, "the pour,")
     _edit(root / "README.md", row, "| stale |")
-    cli._readme_figures(list(cli.PARTS), False, root / BENCHMARKS, {})
+    assert runner.update_readme(list(runner.PARTS), False, root / BENCHMARKS, {})
     assert (root / "README.md").read_text() == (ROOT / "README.md").read_text()
     assert "roco bench: wrote README.md's figures" in capsys.readouterr().err
     # a source without its run header: one line saying so, a non-zero exit, README unchanged
     _edit(root / LOOP, "- CPU: AMD EPYC", "- AMD EPYC")
-    with pytest.raises(typer.Exit) as exit_:
-        cli._readme_figures(list(cli.PARTS), False, root / BENCHMARKS, {})
-    assert exit_.value.exit_code == 1
+    assert not runner.update_readme(list(runner.PARTS), False, root / BENCHMARKS, {})  # roco bench: exit 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [
         "roco: README.md's figures not written: docs/bench/loop.md: no line '- CPU: …, N of M cores usable'"

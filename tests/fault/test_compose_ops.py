@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from services.cli.fault import fault_app
 from services.deploy import engine
 from services.deploy.engine import ComposeFleet, compose_command, run_name, running_fleets
-from services.fault.cli import fault_app
 from services.fault.compose import Compose
 from services.fault.process import FaultError
 
@@ -111,7 +111,7 @@ def test_fault_finds_the_one_compose_fleet_running(monkeypatch: pytest.MonkeyPat
     compose_file = tmp_path / "compose.yaml"
     compose_file.write_text("services: {}\n")
     fleets = [ComposeFleet("roco", (compose_file,))]
-    monkeypatch.setattr("services.fault.cli.running_fleets", lambda: fleets)
+    monkeypatch.setattr("services.fault.target.running_fleets", lambda: fleets)
     monkeypatch.delenv("ROCO_COMPOSE_PROJECT", raising=False)
     done: list[Compose] = []
 

@@ -36,8 +36,8 @@ def test_corrupted_communicates_get_not_understood_and_the_agent_keeps_running(
     replies: queue.SimpleQueue[bytes] = queue.SimpleQueue()
     bus.subscribe(keys.fipa_key("C4", "a_km", "a_pl"), lambda _k, p: replies.put(p))
     km = KnowledgeManager(bus.transport())
-    km.bind()
-    thread = threading.Thread(target=km.run, name="a_km", daemon=True)
+    km.engine.bind()
+    thread = threading.Thread(target=km.engine.run, name="a_km", daemon=True)
     thread.start()
     pl = FaultyTransport(
         bus.transport(),
@@ -71,7 +71,7 @@ def test_corrupted_communicates_get_not_understood_and_the_agent_keeps_running(
         reasons = {r.content.decode().split(":")[0] for r in not_understood}
         assert "malformed communicate" in reasons
     finally:
-        km.stop()
+        km.engine.stop()
         thread.join(timeout=10)
         pl.close()
         km.close()

@@ -14,8 +14,8 @@ import pytest
 from typer.testing import CliRunner
 
 from services.cli import app
+from services.cli.fault import _fleet
 from services.fault import process
-from services.fault.cli import _fleet
 from services.fault.compose import COMPOSE_SERVICES, Compose, compose_services, joined_services
 from services.fault.process import FaultError, UpFleet, local_services
 from services.fleet.launcher import AGENT_ORDER

@@ -56,7 +56,7 @@ class Inbox:
     def __init__(self, name: str) -> None:
         self.bus = MemoryBus()
         self.agent = CLASSES[name](self.bus.transport())
-        self.agent.bind()
+        self.agent.engine.bind()
         self.out: list[tuple[str, bytes]] = []
         self.bus.subscribe(f"roco/fipa/*/{name}/*", lambda k, p: self.out.append((k, p)))
         self.seen: set[bytes] = set()
@@ -64,8 +64,8 @@ class Inbox:
     def feed(self, key: str, payload: bytes) -> list[tuple[str, Communicate]]:
         self.out.clear()
         self.bus.publish(key, payload)
-        self.agent._acquire()
-        self.agent._dispatch()
+        self.agent.engine.acquire()
+        self.agent.engine.dispatch()
         return [(k, decode(p)) for k, p in self.out]
 
 
@@ -86,7 +86,7 @@ def check_rejected(box: Inbox, f: Fuzz) -> None:
     copy = f.payload in box.seen
     box.seen.add(f.payload)
     out = box.feed(f.key, f.payload)
-    assert not agent.x, f"{f.kind} reached the agent: {agent.x[0].msg}"
+    assert not agent.engine.x, f"{f.kind} reached the agent: {agent.engine.x[0].msg}"
     if copy:
         assert out == [] and agent.counters["duplicates"] == before.get("duplicates", 0) + 1
         return
@@ -134,12 +134,12 @@ def test_a_knowledge_manager_flooded_with_bad_input_still_accepts_a_valid_query(
         Performative.QUERY_REF, "a_pl", "a_km", "fipa-query", "c-valid", ObjectQuery("jar"), reply_with="q1"
     )
     assert box.feed(keys.fipa_key("C4", "a_pl", "a_km"), encode(q)) == []
-    assert len(box.agent.x) == 1 and box.agent.x[0].msg.reply_with == "q1"
+    assert len(box.agent.engine.x) == 1 and box.agent.engine.x[0].msg.reply_with == "q1"
 
 
 def test_new_conversations_beyond_the_bound_per_peer_are_refused() -> None:
     box = Inbox("a_km")
-    box.agent.max_open_per_peer = 3
+    box.agent.engine.max_open_per_peer = 3
     key = keys.fipa_key("C4", "a_pl", "a_km")
     for i in range(3):  # a_km does not answer here: three query conversations stay open
         q = communicate(
@@ -152,7 +152,7 @@ def test_new_conversations_beyond_the_bound_per_peer_are_refused() -> None:
             reply_with=f"q{i}",
         )
         assert box.feed(key, encode(q)) == []
-    assert box.agent.protocol_states.open_with("a_pl") == 3
+    assert box.agent.engine.protocol_states.open_with("a_pl") == 3
     q = communicate(
         Performative.QUERY_REF, "a_pl", "a_km", "fipa-query", "c3", ObjectQuery("jar"), reply_with="q3"
     )
@@ -160,17 +160,17 @@ def test_new_conversations_beyond_the_bound_per_peer_are_refused() -> None:
     assert answer.performative is Performative.REFUSE and answer.in_reply_to == "q3"
     assert b"at most 3" in answer.content
     assert box.agent.counters["rejected.too_many_conversations"] == 1
-    assert len(box.agent.x) == 3  # the refused one never reached the agent
-    assert box.agent.protocol_states.open_with("a_pl") == 3  # and its conversation ended
+    assert len(box.agent.engine.x) == 3  # the refused one never reached the agent
+    assert box.agent.engine.protocol_states.open_with("a_pl") == 3  # and its conversation ended
     # another peer is not affected, and an answer in an open conversation still goes through
-    box.agent.x.clear()
-    box.agent.reply(_received(box, "c0"), Performative.INFORM_REF, Answer())
-    box.agent._dispatch()
-    assert box.agent.protocol_states.open_with("a_pl") == 2
+    box.agent.engine.x.clear()
+    box.agent.engine.reply(_received(box, "c0"), Performative.INFORM_REF, Answer())
+    box.agent.engine.dispatch()
+    assert box.agent.engine.protocol_states.open_with("a_pl") == 2
     q = communicate(
         Performative.QUERY_REF, "a_pl", "a_km", "fipa-query", "c4", ObjectQuery("jar"), reply_with="q4"
     )
-    assert box.feed(key, encode(q)) == [] and len(box.agent.x) == 1
+    assert box.feed(key, encode(q)) == [] and len(box.agent.engine.x) == 1
 
 
 def _received(box: Inbox, cid: str) -> Any:

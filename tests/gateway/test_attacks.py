@@ -342,9 +342,9 @@ def test_a_foreign_name_in_use_cannot_be_taken_by_another_peer(door_with: Callab
         assert door.gateway.counters["refused.identity"] == 1
 
         def run(co: ScriptedCo) -> None:
-            co.reply(request_, Performative.AGREE)
+            co.engine.reply(request_, Performative.AGREE)
             outcome = CommandOutcome(command_id=cid, succeeded=True, detail="done")
-            co.reply(request_, Performative.INFORM, outcome)
+            co.engine.reply(request_, Performative.INFORM, outcome)
 
         door.co.do(run)
         answers = [door.jade.next(WAIT).msg.performative for _ in range(2)]

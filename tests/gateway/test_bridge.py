@@ -78,8 +78,10 @@ def test_a_foreign_request_reaches_a_hi_as_a_persons_command_and_its_answers_ret
     cid = request.msg.conversation_id or ""
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
-        co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done"))
+        co.engine.reply(request, Performative.AGREE)
+        co.engine.reply(
+            request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done")
+        )
 
     b.co.do(run)
     agree, inform = b.jade.next(), b.jade.next()

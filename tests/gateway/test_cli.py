@@ -1,4 +1,4 @@
-"""``roco gateway``'s errors: one line, non-zero exit (services/gateway/cli.py)."""
+"""``roco gateway``'s errors: one line, non-zero exit (services/cli/gateway.py)."""
 
 from __future__ import annotations
 

@@ -54,8 +54,8 @@ def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -
     agents: list[tuple[Agent, threading.Thread]] = []
 
     def start(agent: Agent) -> None:
-        agent.bind()
-        t = threading.Thread(target=agent.run, daemon=True)
+        agent.engine.bind()
+        t = threading.Thread(target=agent.engine.run, daemon=True)
         t.start()
         agents.append((agent, t))
 
@@ -93,8 +93,8 @@ def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -
         cid = request.msg.conversation_id or ""
 
         def run(c: ScriptedCo) -> None:
-            c.reply(request, Performative.AGREE)
-            c.reply(
+            c.engine.reply(request, Performative.AGREE)
+            c.engine.reply(
                 request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done")
             )
 
@@ -150,9 +150,9 @@ def test_a_jade_request_crosses_the_gateway_under_access_control(fleet: Fleet) -
         server.stop()
         gateway.stop()
         for agent, _ in agents:
-            agent.stop()
+            agent.engine.stop()
         for agent, t in agents:
             t.join(timeout=TIMEOUT)
-            agent.transport.close()
+            agent.engine.transport.close()
         gateway_transport.close()
         sniffer.join(timeout=TIMEOUT)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from services.control.status_cli import _flag_lines
+from services.cli.status import _flag_lines
 from services.fleet.launcher import Fleet, free_port
 from services.recorder.flags import ask_flags, read_flags
 from services.report.load import load_run

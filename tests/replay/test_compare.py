@@ -126,6 +126,6 @@ def test_an_agent_takes_its_transport_s_sources_or_the_system_s() -> None:
     agent = Planner(_Offering(bus, sources))  # type: ignore[arg-type]
     assert agent.sources is sources
     expected = ReplaySources(T0 + 100.0)
-    sent = agent.send("a_km", Performative.QUERY_REF, None, protocol="fipa-query", reply_by_s=30.0)
+    sent = agent.engine.send("a_km", Performative.QUERY_REF, None, protocol="fipa-query", reply_by_s=30.0)
     assert sent.reply_by == T0 + 130.0  # the deadline from the replay's clock
     assert sent.reply_with == expected.new_id("a_pl-") and sent.conversation_id == expected.new_id("c-")

@@ -1,5 +1,5 @@
 """``roco ros2``'s options and ``--ros2`` on ``roco run``, ``roco scenario`` and ``roco up``
-(services/ros2/live_cli.py, services/scenario/cli.py, services/control/cli.py): what is
+(services/cli/ros2.py, run.py, up.py; services/control/start.py): what is
 published is only what is asked; a bad namespace is one ``roco:`` line. No fleet starts."""
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def test_only_the_topics_asked_for_are_published(
 
 def test_run_and_scenario_pass_ros2_to_the_runner(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     given: list[dict[str, object]] = []
-    monkeypatch.setattr("services.scenario.cli._run_scenario", lambda sc, runs_dir, **kw: given.append(kw))
+    monkeypatch.setattr("services.cli.run.run_scenario", lambda sc, runs_dir, **kw: given.append(kw))
     kitchen = ["--ros2", "--ros2-domain", "3", "--ros2-namespace", "/kitchen"]
     for args in ([], ["--ros2"], kitchen, kitchen[1:]):
         code, out = invoke(["run", "pour the jar into the bowl", *args, "--runs-dir", str(tmp_path)])
@@ -68,7 +68,7 @@ def test_run_and_scenario_pass_ros2_to_the_runner(tmp_path: Path, monkeypatch: p
 
 
 def test_up_starts_the_face_with_its_domain_and_namespace() -> None:
-    from services.control.cli import _start_faces
+    from services.control.start import start_faces
 
     class Started:
         def __init__(self) -> None:
@@ -82,9 +82,9 @@ def test_up_starts_the_face_with_its_domain_and_namespace() -> None:
 
     fleet = Started()
     face = ("--all", "--domain", "3", "--namespace", "/kitchen")
-    line = _start_faces(fleet, None, None, face)  # type: ignore[arg-type]
+    line = start_faces(fleet, None, None, face)  # type: ignore[arg-type]
     assert fleet.args == [face] and "roco ros2 --all --domain 3 --namespace /kitchen" in line
-    assert _start_faces(fleet, None, None, None) == "" and fleet.args == [face]  # type: ignore[arg-type]
+    assert start_faces(fleet, None, None, None) == "" and fleet.args == [face]  # type: ignore[arg-type]
 
 
 @pytest.fixture

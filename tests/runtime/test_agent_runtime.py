@@ -43,25 +43,25 @@ class Counter(Agent):
         self.trace.append(f"count{self.count}")
 
     def _answer(self) -> None:
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             if item.performative is Performative.QUERY_REF and isinstance(item.content, ObjectQuery):
-                self.reply(item, Performative.INFORM_REF, Answer())
+                self.engine.reply(item, Performative.INFORM_REF, Answer())
 
 
 @contextlib.contextmanager
 def serving(bus: MemoryBus, agent: Agent) -> Iterator[queue.SimpleQueue[Communicate]]:
     """``agent`` (on ``bus``) bound and running on a thread of its own; yields what reaches
     a_pl, decoded; stops the agent and checks that its thread ended."""
-    agent.bind()
+    agent.engine.bind()
     to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
     bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: to_pl.put(decode(p)))
-    t = threading.Thread(target=agent.run, daemon=True)
+    t = threading.Thread(target=agent.engine.run, daemon=True)
     t.start()
     try:
         yield to_pl
     finally:
-        agent.stop()
+        agent.engine.stop()
         t.join(timeout=5)
     assert not t.is_alive()
 
@@ -100,7 +100,7 @@ def test_behaviour_iterates_until_terminal_then_switches(running: tuple) -> None
     reply = to_pl.get(timeout=5)
     assert reply.performative is Performative.INFORM_REF
     assert agent.trace == [f"count{i}" for i in range(1, 6)]
-    assert agent.state == "answer"
+    assert agent.engine.state == "answer"
 
 
 @pytest.mark.parametrize(
@@ -141,11 +141,13 @@ def test_not_understood_is_never_answered_with_not_understood(running: tuple) ->
 def test_sending_outside_the_interface_raises() -> None:
     agent = Counter(MemoryBus().transport())
     with pytest.raises(SpecViolation, match="no channel"):
-        agent.send("ag_ex", Performative.INFORM, protocol="fipa-request")
+        agent.engine.send("ag_ex", Performative.INFORM, protocol="fipa-request")
     with pytest.raises(SpecViolation, match="may not send request"):
-        agent.send("a_pl", Performative.REQUEST, protocol="fipa-query")
+        agent.engine.send("a_pl", Performative.REQUEST, protocol="fipa-query")
     with pytest.raises(SpecViolation, match="must use L_WM"):
-        agent.send("a_pl", Performative.INFORM_REF, SWStatus(state=SWState.IDLE), protocol="fipa-query")
+        agent.engine.send(
+            "a_pl", Performative.INFORM_REF, SWStatus(state=SWState.IDLE), protocol="fipa-query"
+        )
 
 
 class Asker(Agent):
@@ -159,27 +161,29 @@ class Asker(Agent):
         return FSM([Behaviour("ask", self._step, terminal=lambda: False)])
 
     def setup(self) -> None:
-        self.send("a_km", Performative.QUERY_REF, ObjectQuery("jar"), protocol="fipa-query", reply_by_s=0.2)
+        self.engine.send(
+            "a_km", Performative.QUERY_REF, ObjectQuery("jar"), protocol="fipa-query", reply_by_s=0.2
+        )
 
     def _step(self) -> None:
-        while self.x:
-            self.got.put(self.x.popleft())
+        while self.engine.x:
+            self.got.put(self.engine.x.popleft())
 
 
 def test_reply_by_deadline_ends_the_conversation_with_a_local_failure() -> None:
     bus = MemoryBus()
     agent = Asker(bus.transport())
-    agent.bind()
-    t = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    t = threading.Thread(target=agent.engine.run, daemon=True)
     t.start()
     try:
         item = agent.got.get(timeout=5)
         assert item.local and item.performative is Performative.FAILURE
         assert item.msg.content == b"reply-by deadline passed"
         assert agent.counters["deadline_failures"] == 1
-        assert len(agent.pending_replies) == 0
+        assert len(agent.engine.pending_replies) == 0
     finally:
-        agent.stop()
+        agent.engine.stop()
         t.join(timeout=5)
 
 
@@ -189,7 +193,7 @@ def test_liveliness_token_is_announced_once_the_agent_listens() -> None:
 
     class Listening(Counter):
         def setup(self) -> None:
-            self.transport.subscribe("test/said", lambda key, payload: heard.append(payload))
+            self.engine.transport.subscribe("test/said", lambda key, payload: heard.append(payload))
 
     bus, heard = MemoryBus(), list[bytes]()
     seen = threading.Event()
@@ -201,24 +205,24 @@ def test_liveliness_token_is_announced_once_the_agent_listens() -> None:
 
     bus.watch(keys.alive_key("a_km"), on_token)
     agent = Listening(bus.transport())
-    agent.bind()
+    agent.engine.bind()
     assert keys.alive_key("a_km") not in bus.alive()
-    t = threading.Thread(target=agent.run, daemon=True)
+    t = threading.Thread(target=agent.engine.run, daemon=True)
     t.start()
     try:
         assert seen.wait(5)
         assert heard == [b"hello"]
     finally:
-        agent.stop()
+        agent.engine.stop()
         t.join(timeout=5)
 
 
 def test_memory_bus_messages_are_valid_msgpack_communicates() -> None:
     bus = MemoryBus()
     agent = Counter(bus.transport())
-    agent._take(KEY, encode(query(conversation_id="x")))  # a reply needs a query (fipa-query)
-    agent.send("a_pl", Performative.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="x")
-    agent._dispatch()
+    agent.engine.take(KEY, encode(query(conversation_id="x")))  # a reply needs a query (fipa-query)
+    agent.engine.send("a_pl", Performative.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="x")
+    agent.engine.dispatch()
     ((key, payload),) = bus.published
     assert key == keys.fipa_key("C4", "a_km", "a_pl")
     msg = decode(payload)
@@ -236,12 +240,12 @@ class Faulty(Agent):
         return FSM([Behaviour("serve", self._serve, terminal=lambda: False)])
 
     def _serve(self) -> None:
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             if not self.raised:
                 self.raised = True
                 raise RuntimeError("a bug")
-            self.reply(item, Performative.INFORM_REF, Answer())
+            self.engine.reply(item, Performative.INFORM_REF, Answer())
 
 
 def test_an_exception_in_a_behaviour_does_not_stop_the_agent() -> None:
@@ -260,9 +264,9 @@ def test_a_failing_behaviour_drops_only_its_own_output() -> None:
     its step's inputs got on the way in (a not-understood to a malformed communicate)."""
     bus = MemoryBus()
     agent = Faulty(bus.transport())
-    actions = agent._elementary_actions()
+    actions = agent.engine._elementary_actions()
     next(actions)  # set up; 'serve' waits for input
-    agent._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
+    agent.engine._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
     next(actions)  # takes both in; the transition raises on q1
     assert agent.counters["behaviour_errors"] == 1
     answers = [decode(p) for k, p in bus.published if k == keys.fipa_key("C4", "a_km", "a_pl")]
@@ -281,13 +285,13 @@ def test_an_input_whose_taking_in_raises_is_counted_and_the_next_is_taken_in() -
         raised.append(found)
         raise RuntimeError("a fault while answering")
 
-    agent.not_taken = not_taken  # type: ignore[method-assign]
+    agent.engine.not_taken = not_taken  # type: ignore[method-assign]
     agent.count = 5  # past 'count': the agent answers queries
-    agent._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
-    agent._acquire()
+    agent.engine._inbox.extend([(KEY, b"\xc1 not msgpack"), (KEY, encode(query("q1")))])
+    agent.engine.acquire()
     assert len(raised) == 1 and agent.counters["rejected.internal"] == 1
-    assert [item.msg.reply_with for item in agent.x] == ["q1"]
-    assert agent.x[0].performative is Performative.QUERY_REF and agent.x[0].sender == "a_pl"
+    assert [item.msg.reply_with for item in agent.engine.x] == ["q1"]
+    assert agent.engine.x[0].performative is Performative.QUERY_REF and agent.engine.x[0].sender == "a_pl"
 
 
 def test_a_followed_protocol_without_a_conversation_id_is_not_understood(
@@ -314,11 +318,11 @@ def test_a_step_takes_in_what_had_arrived_when_it_began_not_what_floods_in_meanw
         if len(taken) < 1000:
             agent.post(("more", len(taken)))
 
-    agent.take_event = take  # type: ignore[method-assign]  # post() puts events
+    agent.engine.take_event = take  # type: ignore[method-assign]  # post() puts events
     for i in range(3):
         agent.post(("first", i))
-    agent._acquire()
+    agent.engine.acquire()
     assert len(taken) == 3  # the behaviours run before the 3 inputs that arrived meanwhile
-    assert len(agent._inbox) == 3
-    agent._acquire()
+    assert len(agent.engine._inbox) == 3
+    agent.engine.acquire()
     assert len(taken) == 6

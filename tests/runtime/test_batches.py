@@ -60,11 +60,11 @@ def test_each_communicate_of_a_batch_is_checked_alone_and_the_answers_leave_toge
     ]
     # one query answered first: the agent's start-up is over (a slow start-up, e.g. writing
     # its FSM record to a tap folder, would take part of the batch in its own step)
-    agent._on_payload(KEY, encode(query("q0", conversation_id="c0")))
+    agent.engine._on_payload(KEY, encode(query("q0", conversation_id="c0")))
     assert to_pl.get(timeout=5).in_reply_to == "q0"
     before = len(transport.puts)
-    with agent._turn:  # as the transport's receiving thread calls it, between two steps
-        agent._on_payload(KEY, pack(batch))
+    with agent.engine._turn:  # as the transport's receiving thread calls it, between two steps
+        agent.engine._on_payload(KEY, pack(batch))
     got = [to_pl.get(timeout=5) for _ in range(5)]
     assert [(m.performative, m.in_reply_to) for m in got] == [
         (Performative.NOT_UNDERSTOOD, None),
@@ -83,7 +83,7 @@ def test_each_communicate_of_a_batch_is_checked_alone_and_the_answers_leave_toge
 
 def test_a_lone_answer_is_not_wrapped(running: Running) -> None:
     agent, transport, to_pl = running
-    agent._on_payload(KEY, encode(query("q1")))
+    agent.engine._on_payload(KEY, encode(query("q1")))
     assert to_pl.get(timeout=5).in_reply_to == "q1"
     puts = [p for key, p in transport.puts if key == TO_PL]
     assert len(puts) == 1 and not is_batch(puts[0]) and decode(puts[0]).in_reply_to == "q1"

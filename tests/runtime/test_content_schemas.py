@@ -19,7 +19,9 @@ def test_sending_a_term_the_specification_does_not_list_raises() -> None:
     with pytest.raises(
         SpecViolation, match="inform-ref to a_pl in fipa-query may carry Answer, not WorldUpdate"
     ):
-        km.send("a_pl", Performative.INFORM_REF, WorldUpdate(stamp=0.0, objects=()), protocol="fipa-query")
+        km.engine.send(
+            "a_pl", Performative.INFORM_REF, WorldUpdate(stamp=0.0, objects=()), protocol="fipa-query"
+        )
     assert km.counters["send_violations"] == 1
     km.close()
 
@@ -28,7 +30,7 @@ def test_the_listed_term_passes_the_content_check() -> None:
     from services.agents.knowledge.agent import KnowledgeManager
 
     km = KnowledgeManager(MemoryBus().transport())
-    kinds = [k for k in km.interface.sends if k.receiver == "a_pl" and k.performative == "inform-ref"]
+    kinds = [k for k in km.engine.interface.sends if k.receiver == "a_pl" and k.performative == "inform-ref"]
     assert kinds and all(k.contents == ("Answer",) for k in kinds)
     assert type(Answer()).__name__ in kinds[0].contents
     km.close()

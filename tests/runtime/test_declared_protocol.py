@@ -29,12 +29,12 @@ def pair() -> Iterator[tuple[MemoryBus, Sender, Listener]]:
     threads = []
     agents: tuple[Scripted, Scripted] = (n, listener)
     for agent in agents:
-        agent.bind()
-        threads.append(threading.Thread(target=agent.run, daemon=True))
+        agent.engine.bind()
+        threads.append(threading.Thread(target=agent.engine.run, daemon=True))
         threads[-1].start()
     yield bus, n, listener
     for agent, thread in zip(agents, threads, strict=True):
-        agent.stop()
+        agent.engine.stop()
         thread.join(timeout=5)
         assert not thread.is_alive()
 
@@ -64,7 +64,11 @@ def test_a_notification_arrives_and_ends_the_conversation_on_both_sides(
     assert (protocol, said) == (NOTIFY, "inform")
     assert conv.content == RUNNING and conv.conversation_id == opened.conversation_id
     assert _on_thread(listener, lambda a: (conv.finished, list(a.roles))) == (True, [])
-    assert _on_thread(n, lambda a: (opened.finished, list(a.roles), len(a.pending_replies))) == (True, [], 0)
+    assert _on_thread(n, lambda a: (opened.finished, list(a.roles), len(a.engine.pending_replies))) == (
+        True,
+        [],
+        0,
+    )
     for agent in (n, listener):
         assert agent.counters["protocol_violations"] == 0 and agent.counters["send_violations"] == 0
 
@@ -76,7 +80,11 @@ def test_a_told_statement_is_confirmed(pair: tuple[MemoryBus, Sender, Listener])
     assert listener.next()[:2] == (TELL, "inform")
     protocol, said, conv = n.next()
     assert (protocol, said, conv) == (TELL, "confirm", opened)
-    assert _on_thread(n, lambda a: (conv.finished, list(a.roles), len(a.pending_replies))) == (True, [], 0)
+    assert _on_thread(n, lambda a: (conv.finished, list(a.roles), len(a.engine.pending_replies))) == (
+        True,
+        [],
+        0,
+    )
     for agent in (n, listener):
         assert agent.counters["protocol_violations"] == 0 and agent.counters["send_violations"] == 0
 

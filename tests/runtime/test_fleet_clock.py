@@ -161,7 +161,7 @@ class Watcher(Agent):
 
 
 def _drive(bus: MemoryBus, wall: Wall, agent: Watcher, seconds: float) -> None:
-    actions = agent._elementary_actions()
+    actions = agent.engine._elementary_actions()
     sim = 0.0
     for _ in range(round(seconds / STEP)):
         bus.publish(keys.SIM_CLOCK, encode_sim_time(sim))  # as ag_ex does at its state rate
@@ -175,7 +175,7 @@ def test_an_agent_s_periodic_behaviour_follows_the_simulation_time_ag_ex_publish
     bus, wall = MemoryBus(), Wall()
     agent = Watcher(bus, wall)
     agent.setup()
-    agent.bind()
+    agent.engine.bind()
     _drive(bus, wall, agent, 20.0)
     assert agent.on_wall == 10
     assert agent.on_sim == pytest.approx(FAST * 10, abs=1)  # the first mark's pace is the wall's
@@ -198,12 +198,12 @@ class Quick(Agent):
 def test_the_agent_blocks_until_the_next_period_is_due_in_wall_seconds() -> None:
     bus, wall = MemoryBus(), Wall()
     agent = Quick(bus, wall)
-    agent.bind()
+    agent.engine.bind()
     for sim in (0.0, FAST * STEP):  # two marks: the pace is FAST
         bus.publish(keys.SIM_CLOCK, encode_sim_time(sim))
         wall.t += STEP
     bus.publish(keys.SIM_CLOCK, encode_sim_time(2 * FAST * STEP))
-    actions = agent._elementary_actions()
+    actions = agent.engine._elementary_actions()
     assert next(actions) == pytest.approx(0.25 / FAST)  # acted; 0.25 s of the clock is 0.05 wall s
     actions.close()
 
@@ -213,7 +213,7 @@ def test_in_real_time_the_agent_does_not_listen_and_keeps_wall_time(monkeypatch:
     bus, wall = MemoryBus(), Wall()
     agent = Watcher(bus, wall)
     agent.setup()
-    agent.bind()
+    agent.engine.bind()
     _drive(bus, wall, agent, 20.0)
     assert agent.on_sim == agent.on_wall == 10
 
@@ -238,12 +238,12 @@ def test_ag_ex_publishes_the_simulation_time_with_its_state_and_an_agent_s_clock
     heard: list[float] = []
     bus.subscribe(keys.SIM_CLOCK, lambda _k, p: heard.append(decode_sim_time(p)))
     watcher = Quick(bus, wall)
-    watcher.bind()
+    watcher.engine.bind()
     ex = Ex(bus.transport())
     for sim in (3.0, 3.25):  # 0.25 s of the simulation in 0.05 wall s
         fake.sim_time = sim
         ex._publish_state()
-        ex._dispatch()
+        ex.engine.dispatch()
         wall.t += STEP
     assert heard == [3.0, 3.25]
-    assert watcher.fleet_clock.pace == pytest.approx(FAST)
+    assert watcher.engine.fleet_clock.pace == pytest.approx(FAST)

@@ -9,7 +9,7 @@ import threading
 
 import pytest
 
-from services.runtime import agent as agent_module
+from services.runtime import engine as agent_module
 from services.runtime.memory_transport import MemoryBus
 from tests.runtime.test_agent_runtime import Counter
 from tests.support.fresh import run_python
@@ -52,11 +52,11 @@ def test_an_agent_gives_back_once_its_first_step_has_blocked(monkeypatch: pytest
         return True
 
     monkeypatch.setattr(agent_module, "give_back_freed_heap", record)
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    thread = threading.Thread(target=agent.engine.run, daemon=True)
     thread.start()
     assert called.wait(10)
-    agent.stop()
+    agent.engine.stop()
     thread.join(timeout=5)
     assert not thread.is_alive()
     assert calls == [5]  # once, after the 'count' behaviour's five steps, when 'answer' blocked

@@ -1,6 +1,6 @@
 """An idle agent takes a communicate in on the thread it arrived on: the same checks,
 in the same order, one thread at a time; streams, undeclared keys and errors go back to the
-agent's own thread (services/runtime/agent.py ``Agent._take_here``)."""
+agent's own thread (services/runtime/engine.py ``Engine._take_here``)."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ from typing import ClassVar
 
 import pytest
 
-from services.runtime import agent as agent_module
+from services.runtime import engine as agent_module
 from services.runtime import keys
-from services.runtime.agent import INLINE_OUTPUT_MAX, Agent
+from services.runtime.agent import Agent
 from services.runtime.behaviour import FSM, Behaviour
+from services.runtime.engine import INLINE_OUTPUT_MAX
 from services.runtime.memory_transport import MemoryBus, MemoryTransport
 from services.runtime.transport import Callback, ZenohTransport
 from shared.fipa_codec import Communicate, Performative, decode, encode
@@ -90,11 +91,11 @@ class Answering(Agent):
         return FSM([Behaviour("answer", self._answer, terminal=lambda: False)])
 
     def _answer(self) -> None:
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             self.handled_on.append(threading.current_thread().name)
             if item.performative is Performative.QUERY_REF and isinstance(item.content, ObjectQuery):
-                self.reply(item, Performative.INFORM_REF, Answer())
+                self.engine.reply(item, Performative.INFORM_REF, Answer())
                 for i in range(self.extra):
                     self.emit("test/out", str(i).encode())
 
@@ -120,7 +121,7 @@ class Running:
         under the turn, and the turn is free only while they are suspended waiting for input
         (period 60 s: nothing else wakes them)."""
         assert self.agent.started.wait(5)
-        with self.agent._turn:
+        with self.agent.engine._turn:
             pass
 
 
@@ -130,14 +131,14 @@ def start(
     bus = MemoryBus()
     transport = transport_cls(bus)
     agent = agent_cls(transport)
-    agent.bind()
+    agent.engine.bind()
     to_pl: queue.SimpleQueue[Communicate] = queue.SimpleQueue()
     bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: [to_pl.put(decode(part)) for part in unpack(p)])
     raised: list[BaseException] = []
 
     def run() -> None:
         try:
-            agent.run()
+            agent.engine.run()
         except BaseException as exc:  # what run() raised, for the test to see
             raised.append(exc)
 
@@ -158,7 +159,7 @@ def every_arrival_apart(monkeypatch: pytest.MonkeyPatch) -> None:
 def running() -> Iterator[Running]:
     r = start()
     yield r
-    r.agent.stop()
+    r.agent.engine.stop()
     r.thread.join(timeout=5)
     assert not r.thread.is_alive()
     r.transport.close()
@@ -187,11 +188,11 @@ def test_bad_input_taken_in_on_the_receiving_thread_gets_not_understood(running:
 
 def test_input_that_arrives_while_a_step_runs_waits_and_keeps_its_order(running: Running) -> None:
     agent = running.agent
-    with agent._turn:  # the agent's actions are running (on some thread)
+    with agent.engine._turn:  # the agent's actions are running (on some thread)
         for n in range(5):
             running.bus.publish(KEY, encode(query(f"q{n}", conversation_id=f"c{n}")))
         running.transport.flush()
-        assert [decode(p).reply_with for _, p in agent._inbox] == [f"q{n}" for n in range(5)]
+        assert [decode(p).reply_with for _, p in agent.engine._inbox] == [f"q{n}" for n in range(5)]
         assert running.to_pl.empty()
     answers = [running.to_pl.get(timeout=5).in_reply_to for _ in range(5)]
     assert answers == [f"q{n}" for n in range(5)]
@@ -215,7 +216,7 @@ def test_a_step_that_puts_a_stream_goes_on_on_the_agents_thread() -> None:
         assert len(r.transport.put_by) == 1 + INLINE_OUTPUT_MAX + 1
         assert {thread for _, thread in r.transport.put_by} == {AGENT}  # ... put by the agent's thread
     finally:
-        r.agent.stop()
+        r.agent.engine.stop()
         r.thread.join(timeout=5)
         r.transport.close()
 
@@ -251,7 +252,7 @@ def test_agent_thread_mode_hands_every_communicate_to_the_agents_thread(
         assert r.agent.handled_on == [AGENT]
         assert r.transport.put_by == [(keys.fipa_key("C4", "a_km", "a_pl"), AGENT)]
     finally:
-        r.agent.stop()
+        r.agent.engine.stop()
         r.thread.join(timeout=5)
         r.transport.close()
 
@@ -301,7 +302,7 @@ def test_only_a_step_that_computes_past_the_budget_ends_inline_receiving(
             r.idle()
         assert r.agent.handled_on == [DELIVERY, second_on]
     finally:
-        r.agent.stop()
+        r.agent.engine.stop()
         r.thread.join(timeout=5)
         r.transport.close()
 
@@ -422,7 +423,7 @@ def test_a_transport_that_reports_a_burst_decides_what_is_taken_in_here(
         assert to_pl.get(timeout=5).in_reply_to == "q2"
         assert agent.counters["received_inline"] == 2 and agent.handled_on[-1] == AGENT
     finally:
-        agent.stop()
+        agent.engine.stop()
         r.thread.join(timeout=5)
         transport.close()
 

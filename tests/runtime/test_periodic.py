@@ -83,7 +83,7 @@ def test_the_agent_blocks_no_longer_than_until_the_next_period_is_due() -> None:
     clock = Clock()
     agent = Ticker(clock)
     assert agent.period == pytest.approx(0.1)
-    actions = agent._elementary_actions()
+    actions = agent.engine._elementary_actions()
     wait = next(actions)  # the first iteration acted, then the agent blocks for input
     assert agent.acted == 1
     assert wait == pytest.approx(0.03)  # not the sampling period, 0.1 s

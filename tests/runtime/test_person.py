@@ -53,13 +53,20 @@ class _Transport:
         self.served[key] = answer
 
 
+class _Engine:
+    """What a PersonFace uses of an agent's engine: its transport."""
+
+    def __init__(self) -> None:
+        self.transport = _Transport()
+
+
 class _Agent:
     """What a PersonFace uses of an agent (services/runtime/person.py ``Interface``)."""
 
     def __init__(self) -> None:
         import logging
 
-        self.transport = _Transport()
+        self.engine = _Engine()
         self.log = logging.getLogger("a_desk")
         self.posted: list[object] = []
         self.emitted: list[tuple[str, bytes]] = []
@@ -82,7 +89,7 @@ def test_a_person_face_hears_lines_answers_them_and_keeps_the_outcomes(caplog: o
     agent = _Agent()
     face = PersonFace(agent)
     face.open()
-    hear = agent.transport.subscribed[keys.HUMAN_IN]
+    hear = agent.engine.transport.subscribed[keys.HUMAN_IN]
     line = HumanInput(text="sort the bolts", request_id="r1")
     hear(keys.HUMAN_IN, msgspec.json.encode(line))  # type: ignore[operator]
     hear(keys.HUMAN_IN, b"{not json")  # type: ignore[operator]
@@ -97,5 +104,5 @@ def test_a_person_face_hears_lines_answers_them_and_keeps_the_outcomes(caplog: o
         (ReportKind.SUCCEEDED, ""),
         (ReportKind.NOTICE, "a_cv"),
     ]
-    answer = agent.transport.served[keys.HUMAN_OUTCOMES]()  # type: ignore[operator]
+    answer = agent.engine.transport.served[keys.HUMAN_OUTCOMES]()  # type: ignore[operator]
     assert [r.text for r in msgspec.json.decode(answer, type=list[HumanReport])] == ["sorted 3 bolts"]

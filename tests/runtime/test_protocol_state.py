@@ -311,12 +311,12 @@ class Wire:
     def deliver(self, channel: str, msg: Communicate) -> None:
         """Acquire ``msg`` as the agent's input buffer would, then dispatch the output buffer."""
         assert msg.sender is not None
-        self.agent._take(keys.fipa_key(channel, msg.sender.name, self.agent.name), encode(msg))
-        self.agent.protocol_states.commit()
-        self.agent._dispatch()
+        self.agent.engine.take(keys.fipa_key(channel, msg.sender.name, self.agent.name), encode(msg))
+        self.agent.engine.protocol_states.commit()
+        self.agent.engine.dispatch()
 
     def received(self) -> list[Communicate]:
-        return [m for m in (r.msg for r in self.agent.x)]
+        return [m for m in (r.msg for r in self.agent.engine.x)]
 
     def answers(self) -> list[Communicate]:
         return [m for m in self.out if m.sender is not None and m.sender.name == self.agent.name]
@@ -324,7 +324,9 @@ class Wire:
 
 def km_sends(w: Wire, perf: Performative) -> None:
     """a_km sends ``perf`` in its environment subscription ``env`` to a_ta."""
-    w.agent.send("a_ta", perf, Subscription("environment"), protocol="fipa-subscribe", conversation_id="env")
+    w.agent.engine.send(
+        "a_ta", perf, Subscription("environment"), protocol="fipa-subscribe", conversation_id="env"
+    )
 
 
 def test_an_inform_before_the_agree_gets_not_understood_counted_and_logged(
@@ -332,7 +334,7 @@ def test_an_inform_before_the_agree_gets_not_understood_counted_and_logged(
 ) -> None:
     w = Wire(Km)
     km_sends(w, P.SUBSCRIBE)
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     update = WorldUpdate(stamp=1.0, objects=())
     with caplog.at_level(logging.WARNING, logger="a_km"):
         w.deliver("C6", communicate(P.INFORM, "a_ta", "a_km", "fipa-subscribe", "env", update))
@@ -343,14 +345,14 @@ def test_an_inform_before_the_agree_gets_not_understood_counted_and_logged(
         "initiator cancel, initiator not-understood, participant agree, participant not-understood, "
         "participant refuse"
     )
-    assert w.agent.counters["protocol_violations"] == 1 and not w.agent.x
+    assert w.agent.counters["protocol_violations"] == 1 and not w.agent.engine.x
     assert any("conversation env" in r.getMessage() and r.levelno == logging.WARNING for r in caplog.records)
 
 
 def test_a_second_agree_and_an_inform_in_a_conversation_never_opened_are_refused() -> None:
     w = Wire(Km)
     km_sends(w, P.SUBSCRIBE)
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env"))
     # a second agree (not a byte-identical copy: that is dropped as a duplicate, below)
     w.deliver("C6", communicate(P.AGREE, "a_ta", "a_km", "fipa-subscribe", "env", reply_with="again"))
@@ -389,7 +391,7 @@ def test_a_communicate_without_the_languages_ontology_gets_not_understood(
     w.deliver("C4", query)
     (nu,) = w.answers()
     assert nu.performative is P.NOT_UNDERSTOOD and why in nu.content.decode()
-    assert not w.agent.x and w.agent.counters["rejected"] == 1
+    assert not w.agent.engine.x and w.agent.counters["rejected"] == 1
 
 
 def test_the_runtime_refuses_what_fipa_forbids_live_and_counts_it() -> None:
@@ -401,11 +403,11 @@ def test_the_runtime_refuses_what_fipa_forbids_live_and_counts_it() -> None:
     w = Wire(Km)
     query = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"))
     w.deliver("C4", query)
-    (item,) = list(w.agent.x)
-    w.agent.reply(item, P.INFORM_REF, Answer())
-    w.agent.x.clear()
+    (item,) = list(w.agent.engine.x)
+    w.agent.engine.reply(item, P.INFORM_REF, Answer())
+    w.agent.engine.x.clear()
     w.deliver("C4", query)  # the same bytes again: a copy, not a new opening
-    assert not w.agent.x and w.agent.counters["protocol_violations"] == 0
+    assert not w.agent.engine.x and w.agent.counters["protocol_violations"] == 0
     again = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"), reply_with="q-2")
     w.deliver("C4", again)
     second = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "r", ObjectQuery("jar"))
@@ -427,16 +429,16 @@ def test_the_runtime_refuses_what_fipa_forbids_live_and_counts_it() -> None:
 def test_sending_out_of_the_protocol_state_raises_and_is_counted() -> None:
     w = Wire(Km)
     with pytest.raises(SpecViolation, match="no such conversation of a_km with a_pl"):
-        w.agent.send("a_pl", P.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="q")
+        w.agent.engine.send("a_pl", P.INFORM_REF, Answer(), protocol="fipa-query", conversation_id="q")
     w.deliver("C4", communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar")))
-    (item,) = list(w.agent.x)
-    w.agent.reply(item, P.INFORM_REF, Answer())
+    (item,) = list(w.agent.engine.x)
+    w.agent.engine.reply(item, P.INFORM_REF, Answer())
     with pytest.raises(SpecViolation, match="already ended in state 'answered'"):
-        w.agent.reply(item, P.INFORM_REF, Answer())
+        w.agent.engine.reply(item, P.INFORM_REF, Answer())
     with pytest.raises(SpecViolation, match="may not send 'agree'"):
-        w.agent.reply(item, P.AGREE)
+        w.agent.engine.reply(item, P.AGREE)
     assert w.agent.counters["send_violations"] == 3
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     assert [m.performative for m in w.answers()] == [P.INFORM_REF]  # nothing refused was sent
 
 
@@ -445,15 +447,15 @@ def test_a_cancel_that_crossed_the_outcome_reaches_the_agent_and_may_be_answered
     command = HumanCommand(text="pour", goal=TaskAtom("pour", ("jar", "bowl")))
     request = communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", "cmd", command)
     w.deliver("C2", request)
-    item = w.agent.x.popleft()
-    w.agent.reply(item, P.AGREE)
-    w.agent.reply(item, P.INFORM, CommandOutcome(command_id="cmd", succeeded=True))
-    w.agent._dispatch()
+    item = w.agent.engine.x.popleft()
+    w.agent.engine.reply(item, P.AGREE)
+    w.agent.engine.reply(item, P.INFORM, CommandOutcome(command_id="cmd", succeeded=True))
+    w.agent.engine.dispatch()
     w.deliver("C2", communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "cmd"))
-    (cancel,) = list(w.agent.x)
+    (cancel,) = list(w.agent.engine.x)
     assert cancel.performative is P.CANCEL and w.agent.counters["crossings"] == 1
-    w.agent.fail(cancel, P.FAILURE, "no such command (it may have ended already)")
-    w.agent._dispatch()
+    w.agent.engine.fail(cancel, P.FAILURE, "no such command (it may have ended already)")
+    w.agent.engine.dispatch()
     assert [m.performative for m in w.answers()] == [P.AGREE, P.INFORM, P.FAILURE]
     assert w.agent.counters["protocol_violations"] == 0
 
@@ -461,8 +463,8 @@ def test_a_cancel_that_crossed_the_outcome_reaches_the_agent_and_may_be_answered
 def test_a_cancel_of_a_conversation_the_agent_never_saw_reaches_it() -> None:
     w = Wire(Co)
     w.deliver("C2", communicate(P.CANCEL, "a_hi", "a_co", "fipa-request", "gone"))
-    (cancel,) = list(w.agent.x)
-    w.agent.fail(cancel, P.FAILURE, "no such command")
+    (cancel,) = list(w.agent.engine.x)
+    w.agent.engine.fail(cancel, P.FAILURE, "no such command")
     assert w.agent.counters["protocol_violations"] == 0
 
 
@@ -472,12 +474,12 @@ def test_after_a_not_understood_only_what_crossed_it_belongs_to_the_conversation
     conversation-id names one conversation, FIPA SC00061): the runtime refuses to send it."""
     w = Wire(Km)
     km_sends(w, P.SUBSCRIBE)
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     w.deliver("C6", communicate(P.NOT_UNDERSTOOD, "a_ta", "a_km", "fipa-subscribe", "env", encoding="utf-8"))
     km_sends(w, P.CANCEL)
     with pytest.raises(SpecViolation, match="new conversation-id"):
         km_sends(w, P.SUBSCRIBE)
-    tracker = w.agent.protocol_states.get("a_ta", "env")
+    tracker = w.agent.engine.protocol_states.get("a_ta", "env")
     assert tracker is not None and tracker.is_finished and tracker.aborted_by == PARTICIPANT
     assert w.agent.counters["send_violations"] == 1
 
@@ -491,13 +493,13 @@ class Replier(Km):
         return FSM([Behaviour("serve", self._serve, terminal=lambda: False)])
 
     def _serve(self) -> None:
-        for item in list(self.x):
-            self.reply(item, P.INFORM_REF, Answer())
+        for item in list(self.engine.x):
+            self.engine.reply(item, P.INFORM_REF, Answer())
             if not self.raised:
                 self.raised = True
                 raise RuntimeError("a bug after the reply")
-            self.x.remove(item)
-            self.stop()
+            self.engine.x.remove(item)
+            self.engine.stop()
 
 
 def test_a_failing_transition_function_takes_back_its_protocol_steps() -> None:
@@ -505,10 +507,10 @@ def test_a_failing_transition_function_takes_back_its_protocol_steps() -> None:
     agent = Replier(bus.transport())
     answers: list[Communicate] = []
     bus.subscribe(keys.inbox_key("a_pl"), lambda k, p: answers.append(decode(p)))
-    agent.bind()
+    agent.engine.bind()
     query = communicate(P.QUERY_REF, "a_pl", "a_km", "fipa-query", "q", ObjectQuery("jar"))
     bus.publish(keys.fipa_key("C4", "a_pl", "a_km"), encode(query))
-    agent.run()  # first step raises after replying; the retry replies again and stops
+    agent.engine.run()  # first step raises after replying; the retry replies again and stops
     assert agent.counters["behaviour_errors"] == 1 and agent.counters["send_violations"] == 0
     assert [m.performative for m in answers] == [P.INFORM_REF]
 

@@ -1,7 +1,7 @@
-"""An agent's readiness (services/runtime/agent.py ``Agent.ready``) and its ready file
+"""An agent's readiness (services/runtime/engine.py ``Engine.ready``) and its ready file
 (shared/ready_file.py, ``ROCO_READY_FILE``: what a container's health check reads): not ready
 before its roles are set up and the agents it asks are seen, ready after, once. The agent runs
-on the test's thread (``Agent.drive``), on an in-memory bus."""
+on the test's thread (``Engine.drive``), on an in-memory bus."""
 
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ def ready_agent(bus: MemoryBus, path: Path) -> tuple[Counter, list[str]]:
         said.append(line)
         mark(path, line)
 
-    agent.on_ready = on_ready
-    agent.bind()
+    agent.engine.on_ready = on_ready
+    agent.engine.bind()
     return agent, said
 
 
@@ -51,21 +51,21 @@ def test_the_agents_each_agent_asks_are_the_other_ends_of_what_it_initiates() ->
 def test_not_ready_until_set_up_and_the_agents_it_asks_are_seen(tmp_path: Path) -> None:
     bus, path = MemoryBus(), tmp_path / "ready"
     agent, said = ready_agent(bus, path)
-    assert agent.asks == ("a_ta",)
+    assert agent.engine.asks == ("a_ta",)
     bus.announce(keys.alive_key("a_pl"))  # an agent a_km does not ask
-    assert not agent.ready and not path.exists()  # not set up yet
-    agent.drive()  # setup, the liveliness token, the first behaviour until it blocks
+    assert not agent.engine.ready and not path.exists()  # not set up yet
+    agent.engine.drive()  # setup, the liveliness token, the first behaviour until it blocks
     assert keys.alive_key("a_km") in bus.alive() and "a_pl" in agent.peers
-    assert not agent.ready and not path.exists()  # a_ta not seen
+    assert not agent.engine.ready and not path.exists()  # a_ta not seen
     bus.announce(keys.alive_key("a_ta"))
-    agent.drive()
-    assert agent.ready and path.read_text() == READY_LINE
+    agent.engine.drive()
+    assert agent.engine.ready and path.read_text() == READY_LINE
     bus.withdraw(keys.alive_key("a_ta"))  # gone and back: still ready, said once
     bus.announce(keys.alive_key("a_ta"))
-    agent.drive()
-    assert agent.ready and said == [READY_LINE.strip()]
-    agent.stop()
-    assert agent.drive() is None
+    agent.engine.drive()
+    assert agent.engine.ready and said == [READY_LINE.strip()]
+    agent.engine.stop()
+    assert agent.engine.drive() is None
 
 
 @pytest.mark.parametrize("name", ["a_km", "ag_ex"])
@@ -87,15 +87,15 @@ def test_ready_only_once_set_up(tmp_path: Path, name: str) -> None:
         order.append(f"ready, token there: {keys.alive_key(name) in bus.alive()}")
         mark(path, line)
 
-    agent.on_ready = on_ready
-    agent.bind()
-    assert not agent.ready and not path.exists()
-    agent.drive()
+    agent.engine.on_ready = on_ready
+    agent.engine.bind()
+    assert not agent.engine.ready and not path.exists()
+    agent.engine.drive()
     assert order == ["setup, ready file there: False", "ready, token there: True"]
     line = READY_LINE if name == "a_km" else "ag_ex ready: roles set up\n"
-    assert agent.ready and path.read_text() == line
-    agent.stop()
-    agent.drive()
+    assert agent.engine.ready and path.read_text() == line
+    agent.engine.stop()
+    agent.engine.drive()
 
 
 def test_the_ready_file_is_written_whole_and_cleared(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

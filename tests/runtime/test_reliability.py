@@ -57,7 +57,7 @@ class Wire(Generic[A]):
         self.out: list[Communicate] = []
         self.raw: list[bytes] = []
         self.bus.subscribe(keys.FIPA_ALL, self._collect)
-        self.agent.bind()
+        self.agent.engine.bind()
 
     def _collect(self, key: str, payload: bytes) -> None:
         self.raw.append(payload)
@@ -68,18 +68,18 @@ class Wire(Generic[A]):
         payload = msg if isinstance(msg, bytes) else encode(msg)
         sender = decode(payload).sender
         assert sender is not None
-        channel = channel_between(self.agent.spec, sender.name, self.agent.name)
+        channel = channel_between(self.agent.engine.spec, sender.name, self.agent.name)
         assert channel is not None
-        self.agent._take(keys.fipa_key(channel.name, sender.name, self.agent.name), payload)
-        self.agent.protocol_states.commit()
-        self.agent._dispatch()
+        self.agent.engine.take(keys.fipa_key(channel.name, sender.name, self.agent.name), payload)
+        self.agent.engine.protocol_states.commit()
+        self.agent.engine.dispatch()
 
     def step(self, state: str) -> None:
         """One elementary action of behaviour ``state``: transition, dispatch, new inputs."""
-        self.agent.fsm.states[state].transition()
-        self.agent._dispatch()
+        self.agent.engine.fsm.states[state].transition()
+        self.agent.engine.dispatch()
         self.agent.persist()
-        self.agent._acquire()
+        self.agent.engine.acquire()
 
     def mine(self, *performatives: Performative) -> list[Communicate]:
         return [
@@ -166,21 +166,21 @@ def test_a_copy_is_not_handled_again_but_its_answer_is_sent_again() -> None:
     (answer,) = w.mine(P.INFORM_REF)
     w.deliver(query)  # the same bytes again: a_hi did not hear the answer
     assert w.agent.counters["duplicates"] == 1 and w.agent.counters["replayed"] == 1
-    assert not w.agent.x  # not handled a second time
+    assert not w.agent.engine.x  # not handled a second time
     assert w.mine(P.INFORM_REF) == [answer, answer]
 
 
 def test_an_unanswered_request_is_retransmitted_and_stops_when_answered() -> None:
     w = Wire(Coordinator)
     gtn = GroundTaskNetwork(task_id="cmd-1", tasks=(POUR.goal,), plan_index=1)
-    msg = w.agent.send("a_pl", P.REQUEST, gtn, protocol="fipa-request", retry_s=5.0)
-    w.agent._dispatch()
+    msg = w.agent.engine.send("a_pl", P.REQUEST, gtn, protocol="fipa-request", retry_s=5.0)
+    w.agent.engine.dispatch()
     assert msg.reply_with is not None
-    pending = w.agent.pending_replies._pending[msg.reply_with]
+    pending = w.agent.engine.pending_replies._pending[msg.reply_with]
     pending.next_retry = 0.0  # its time has come
-    w.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
-    w.agent._acquire()
-    w.agent._dispatch()
+    w.agent.engine.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
+    w.agent.engine.acquire()
+    w.agent.engine.dispatch()
     first, again = [raw for raw, m in zip(w.raw, w.out, strict=True) if m.reply_with == msg.reply_with]
     assert first == again and w.agent.counters["retransmitted"] == 1
     w.deliver(
@@ -194,18 +194,18 @@ def test_an_unanswered_request_is_retransmitted_and_stops_when_answered() -> Non
 def test_a_request_to_a_peer_that_comes_back_is_sent_to_it_again() -> None:
     bus = MemoryBus()
     w = Wire(TaskExecutor, bus)
-    msg = w.agent.send(
+    msg = w.agent.engine.send(
         "ag_ex", P.REQUEST, Wait(duration=1.0), protocol="fipa-request", retry_s=RESEND_ON_RETURN
     )
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     ag_ex = bus.transport()
     ag_ex.announce(keys.alive_key("ag_ex"))
-    w.agent._acquire()
-    w.agent._dispatch()
+    w.agent.engine.acquire()
+    w.agent.engine.dispatch()
     assert len([m for m in w.out if m.reply_with == msg.reply_with]) == 2
     assert "ag_ex" in w.agent.peers
     ag_ex.close()  # it goes away: nothing is sent to nobody
-    w.agent._acquire()
+    w.agent.engine.acquire()
     assert "ag_ex" not in w.agent.peers and w.agent.counters["retransmitted"] == 1
 
 
@@ -333,13 +333,13 @@ def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
     _, w = restarted_a_ta_in_the_wait(tmp_path, monkeypatch)
     # it reports only once the scene is observed and a_km informed (a held object's pose
     # decides how the next plan begins): a_km subscribes, a_ta asks ag_ex to observe
-    assert not w.agent.fsm.states["idle"].terminal()
+    assert not w.agent.engine.fsm.states["idle"].terminal()
     w.deliver(
         communicate(P.SUBSCRIBE, "a_km", "a_ta", "fipa-subscribe", "km-env", Subscription(), reply_with="s")
     )
     w.step("idle")
     (observe,) = [m for m in w.mine(P.REQUEST) if m.receiver[0].name == "ag_ex"]
-    assert not w.agent.fsm.states["idle"].terminal()
+    assert not w.agent.engine.fsm.states["idle"].terminal()
     seen = Observation(stamp=3.0, objects=(ObjectObservation(name="jar", pose=Pose((0.7, 0.2, 0.85))),))
     w.deliver(
         communicate(
@@ -355,10 +355,10 @@ def test_a_restarted_a_ta_reports_replan_in_the_plans_conversation(
     w.step("idle")
     (update,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_km"]
     assert msgspec.msgpack.decode(update.content, type=WorldUpdate).objects[0].name == "jar"
-    assert w.agent.fsm.states["idle"].terminal()
-    assert w.agent.fsm.next_state("idle") == "finished"
-    w.agent.fsm.states["finished"].on_enter()
-    w.agent._dispatch()
+    assert w.agent.engine.fsm.states["idle"].terminal()
+    assert w.agent.engine.fsm.next_state("idle") == "finished"
+    w.agent.engine.fsm.states["finished"].on_enter()
+    w.agent.engine.dispatch()
     (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
     status = msgspec.msgpack.decode(report.content, type=SWStatus)
     assert report.conversation_id == "cmd-1-exec1" and report.in_reply_to == "p1"
@@ -387,12 +387,12 @@ def a_hi_that_sent_the_pour(
     first = Wire(HumanInterface, bus)
     first.agent.setup()
     first.agent.post(HumanInput(text="pour the jar into the bowl", request_id=request_id))
-    first.agent._acquire()
+    first.agent.engine.acquire()
     first.step("interact")  # the line goes to a_hi's reader (reading.py) …
     for _ in range(30):  # … and once it is read (ReadDone), the command goes to a_co
         if first.mine(P.REQUEST):
             break
-        first.agent._acquire(timeout=1.0)
+        first.agent.engine.acquire(timeout=1.0)
         first.step("interact")
     (request,) = first.mine(P.REQUEST)
     return bus, reports, first, request
@@ -409,8 +409,8 @@ def test_a_restarted_a_hi_still_tells_the_person_the_outcome(
     second.agent.setup()
     cid = request.conversation_id
     assert cid in second.agent.commands
-    second.agent._acquire()
-    second.agent._dispatch()  # not yet agreed: the request goes again at once
+    second.agent.engine.acquire()
+    second.agent.engine.dispatch()  # not yet agreed: the request goes again at once
     assert [m.reply_with for m in second.mine(P.REQUEST)] == [request.reply_with]
     outcome = CommandOutcome(command_id=cid or "", succeeded=True, detail="the task succeeded")
     second.deliver(communicate(P.AGREE, "a_co", "a_hi", "fipa-request", cid, in_reply_to=request.reply_with))
@@ -439,8 +439,8 @@ def test_a_restarted_a_hi_asks_again_for_an_agreed_command_whose_outcome_came_wh
 
     second = Wire(HumanInterface, bus)
     second.agent.setup()
-    second.agent._acquire()
-    second.agent._dispatch()
+    second.agent.engine.acquire()
+    second.agent.engine.dispatch()
     assert [m.reply_with for m in second.mine(P.REQUEST)] == [request.reply_with]  # agreed, asked again
     outcome = CommandOutcome(command_id=cid, succeeded=True, detail="the task succeeded")
     second.deliver(agree)  # a_co answers the repeated request as it answered it
@@ -481,11 +481,11 @@ def test_a_co_probes_an_a_ta_that_reappears_and_plans_again_when_it_lost_the_pla
     co.step("trigger")
     (confirm,) = co.mine(P.CONFIRM)
     ta.close()  # a_ta's process ends ...
-    co.agent._acquire()
+    co.agent.engine.acquire()
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))  # ... and a new one starts
-    co.agent._acquire()
-    co.agent._dispatch()
+    co.agent.engine.acquire()
+    co.agent.engine.dispatch()
     assert co.mine(P.CONFIRM) == [confirm, confirm]  # the probe: the same confirm again
     # the same a_ta would drop the copy; a new one does not know the conversation
     co.deliver(communicate(P.NOT_UNDERSTOOD, "a_ta", "a_co", "coordinate", run.conversation_id))
@@ -501,15 +501,15 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
     reappears, until a_ta answers it — and not once it has."""
     bus, co, ta = a_co_with_the_pour_planned()
     ta.close()  # the robot's router dies: a_ta's token is gone ...
-    co.agent._acquire()
+    co.agent.engine.acquire()
     co.agent.reschedule = True
     co.step("schedule")
     co.step("switch")  # ... and the plan is sent into the void
     (plan,) = [co.raw[i] for i, m in enumerate(co.out) if m.performative is P.REQUEST]
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))  # the router is back: a_ta's token reappears
-    co.agent._acquire()
-    co.agent._dispatch()
+    co.agent.engine.acquire()
+    co.agent.engine.dispatch()
     again = [co.raw[i] for i, m in enumerate(co.out) if m.performative is P.REQUEST]
     assert again == [plan, plan]  # the same bytes: an a_ta that had it drops the copy
     run = decode(plan)
@@ -519,11 +519,11 @@ def test_a_plan_sent_while_a_ta_is_gone_goes_again_when_it_reappears_and_only_th
     )
     co.deliver(answer)
     ta.close()
-    co.agent._acquire()
+    co.agent.engine.acquire()
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))
-    co.agent._acquire()
-    co.agent._dispatch()
+    co.agent.engine.acquire()
+    co.agent.engine.dispatch()
     assert len([m for m in co.out if m.performative is P.REQUEST]) == 2  # answered: not again
 
 
@@ -538,8 +538,8 @@ def test_a_restarted_a_ta_reports_the_final_state_it_had_reached_again(
     keep_a_ta_plan(tmp_path, request, PlanNote(outcome=SWState.SUCCEEDED), state="ending")
     w = Wire(TaskExecutor)
     assert w.agent.plan_request is not None and w.agent.plan_request.state == "running"
-    w.agent.fsm.states["finished"].on_enter()
-    w.agent._dispatch()
+    w.agent.engine.fsm.states["finished"].on_enter()
+    w.agent.engine.dispatch()
     (report,) = [m for m in w.mine(P.INFORM) if m.receiver[0].name == "a_co"]
     assert msgspec.msgpack.decode(report.content, type=SWStatus).state is SWState.SUCCEEDED
     assert w.agent.counters["protocol_violations"] == 0
@@ -557,9 +557,9 @@ def test_a_ta_keeps_the_plan_it_runs_after_a_not_understood_ended_its_conversati
     first.deliver(communicate(P.REQUEST, "a_co", "a_ta", "coordinate", "cmd-1-exec1", PLAN, reply_with="p1"))
     first.step("idle")
     ta = first.agent
-    ta.state = "running"
-    ta.fsm.states["running"].on_enter()  # informs a_co: Running
-    first.agent._dispatch()
+    ta.engine.state = "running"
+    ta.engine.fsm.states["running"].on_enter()  # informs a_co: Running
+    first.agent.engine.dispatch()
     (running,) = [m for m in first.mine(P.INFORM) if m.receiver[0].name == "a_co"]
     first.deliver(
         communicate(
@@ -571,8 +571,8 @@ def test_a_ta_keeps_the_plan_it_runs_after_a_not_understood_ended_its_conversati
     (kept,) = msgspec.json.decode((tmp_path / "a_ta.json").read_bytes(), type=KeptConversations).conversations
     assert msgspec.json.decode(kept.data, type=PlanNote) == PlanNote(step="pour/wait")
     saved: list[KeptConversations] = []
-    assert ta._kept_conversations is not None
-    monkeypatch.setattr(ta._kept_conversations, "save", saved.append)
+    assert ta.engine._kept is not None
+    monkeypatch.setattr(ta.engine._kept, "save", saved.append)
     first.step("running")  # nothing changed (ag_ex has not answered): not encoded, not written
     ta.persist()
     assert saved == []
@@ -620,8 +620,8 @@ def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped(
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))
     km.agent.setup()
-    km.agent._acquire()
-    km.agent._dispatch()
+    km.agent.engine.acquire()
+    km.agent.engine.dispatch()
     (first,) = km.mine(P.SUBSCRIBE)
     km.deliver(
         communicate(
@@ -630,11 +630,11 @@ def test_an_update_a_ta_sent_before_a_kms_new_subscription_is_taken_not_dropped(
     )
     km.step("idle")
     ta.close()  # the robot's router dies ...
-    km.agent._acquire()
+    km.agent.engine.acquire()
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))  # ... and comes back: a_km subscribes again
-    km.agent._acquire()
-    km.agent._dispatch()
+    km.agent.engine.acquire()
+    km.agent.engine.dispatch()
     assert len(km.mine(P.SUBSCRIBE)) == 2
     update = WorldUpdate(stamp=5.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.3, -0.5, 0.85))),))
     km.deliver(
@@ -661,7 +661,7 @@ def test_a_restarted_a_km_drops_an_update_sent_to_its_previous_process_and_keeps
     bus = MemoryBus()
     km = Wire(KnowledgeManager, bus)
     km.agent.setup()
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     (sub,) = km.mine(P.SUBSCRIBE)
     cid = sub.conversation_id
     old = WorldUpdate(stamp=4.0, objects=(ObjectUpdate(name="bowl", pose=Pose((0.7, -0.2, 0.85))),))
@@ -716,7 +716,7 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     ta.step("idle")
     assert ta.agent.plan_request is not None
     ta.agent._inform_co(SWState.RUNNING, step="pour/wait")
-    ta.agent._dispatch()
+    ta.agent.engine.dispatch()
     (inform,) = [raw for raw, m in zip(ta.raw, ta.out, strict=True) if m.receiver[0].name == "a_co"]
     carry(co, inform)
     co.step("trigger")
@@ -724,12 +724,12 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     # the link is cut: the confirm does not reach a_ta, whose retransmission time comes
     original = decode(inform)
     assert original.reply_with is not None
-    pending = ta.agent.pending_replies.get(original.reply_with)
+    pending = ta.agent.engine.pending_replies.get(original.reply_with)
     assert pending is not None and pending.retry_s is not None
     pending.next_retry = 0.0
-    ta.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
-    ta.agent._acquire()
-    ta.agent._dispatch()
+    ta.agent.engine.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
+    ta.agent.engine.acquire()
+    ta.agent.engine.dispatch()
     informs = [raw for raw, m in zip(ta.raw, ta.out, strict=True) if m.receiver[0].name == "a_co"]
     assert len(informs) == 2 and ta.agent.counters["retransmitted"] == 1
     again = decode(informs[1])
@@ -737,13 +737,13 @@ def test_an_l_sw_inform_retransmitted_across_a_partition_is_its_copy_and_a_co_co
     assert (again.reply_with, again.conversation_id) == (original.reply_with, original.conversation_id)
     carry(co, informs[1])  # the link is back: the retransmission reaches a_co
     assert co.agent.counters["duplicates"] == 1 and co.agent.counters["replayed"] == 1
-    assert not co.agent.x  # not taken in a second time
+    assert not co.agent.engine.x  # not taken in a second time
     confirms = [raw for raw, m in zip(co.raw, co.out, strict=True) if m.performative is P.CONFIRM]
     assert len(confirms) == 2 and confirms[0] == confirms[1] == encode(confirm)
     for raw in confirms:
         carry(ta, raw)
     assert ta.agent.counters["duplicates"] == 1  # the confirm's copy: dropped
-    assert ta.agent.pending_replies.get(original.reply_with) is None  # answered: sent no more
+    assert ta.agent.engine.pending_replies.get(original.reply_with) is None  # answered: sent no more
     assert ta.agent.counters["protocol_violations"] == co.agent.counters["protocol_violations"] == 0
 
     writer = TrafficWriter(tmp_path)

@@ -27,12 +27,12 @@ def pair() -> Iterator[tuple[MemoryBus, Initiator, Participant]]:
     i, p = Initiator(bus.transport(), SPEC), Participant(bus.transport(), SPEC)
     threads = []
     for agent in (i, p):
-        agent.bind()
-        threads.append(threading.Thread(target=agent.run, daemon=True))
+        agent.engine.bind()
+        threads.append(threading.Thread(target=agent.engine.run, daemon=True))
         threads[-1].start()
     yield bus, i, p
     for agent, thread in zip((i, p), threads, strict=True):
-        agent.stop()
+        agent.engine.stop()
         thread.join(timeout=5)
         assert not thread.is_alive()
 
@@ -94,7 +94,7 @@ def test_both_roles_of_every_protocol_run_from_its_state_machine(
         # may be read as one that crossed the terminal inform: the conversation may have ended,
         # and both roles keep it open until they forget the oldest (roles.MAX_OPEN)
         def ended(a: Initiator) -> None:
-            tracker = a.protocol_states.get("a_p", conv.conversation_id)
+            tracker = a.engine.protocol_states.get("a_p", conv.conversation_id)
             done.put(tracker is not None and "finished" in tracker.states)
 
         i.do(ended)

@@ -50,7 +50,7 @@ def said(w: Wire[Server], cid: str) -> list[str]:
 def inform(w: Wire[Server], *steps: str, plan: str = "p1") -> None:
     for step in steps:
         w.agent.stream.inform(status(plan, step))
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
 
 
 def test_what_is_informed_before_the_agree_follows_it_in_order_and_later_informs_go_at_once() -> None:
@@ -189,7 +189,7 @@ def test_a_cancel_answered_later_answers_the_cancel_and_its_inform_ends_the_conv
     assert not [m for m in w.mine() if m.in_reply_to in ("r1-c", "r2-c")]  # held by the agent
     r1.answer_cancel(True, to=cancel1)
     r2.answer_cancel(False, status("p", "why"), to=cancel2)
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     answers = {m.conversation_id: m for m in w.mine() if m.in_reply_to in ("r1-c", "r2-c")}
     assert answers["r1"].performative is P.INFORM and answers["r2"].performative is P.FAILURE
     assert r1.finished and r2.state == "cancel-failed"
@@ -209,7 +209,7 @@ def test_a_kept_communicate_decodes_as_received_and_garbage_does_not() -> None:
 
 def _query(w: Wire[Server], cid: str) -> Communicate:
     w.agent.roles.open("C1", QUERY, None, performative=P.QUERY_REF, conversation_id=cid, data=cid.upper())
-    w.agent._dispatch()
+    w.agent.engine.dispatch()
     return w.mine(P.QUERY_REF)[-1]
 
 
@@ -230,11 +230,11 @@ def test_why_says_a_peers_reason_none_or_that_it_did_not_answer_in_time() -> Non
         w.deliver(refuse)
         w.step("serve")
     asked = _query(w, "q3")
-    pending = w.agent.pending_replies.get(asked.reply_with or "")
+    pending = w.agent.engine.pending_replies.get(asked.reply_with or "")
     assert pending is not None
     pending.deadline = 0.0
-    w.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
-    w.agent._acquire()
+    w.agent.engine.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
+    w.agent.engine.acquire()
     w.step("serve")
     assert w.agent.why == ["it is dark", "no reason given", "a_i did not answer in time"]
 

@@ -39,8 +39,8 @@ def _answer(
 
 def _tick(w: Wire[HumanInterface]) -> None:
     """Take in what arrived (a token's change, a due attempt) and dispatch what that sent."""
-    w.agent._acquire()
-    w.agent._dispatch()
+    w.agent.engine.acquire()
+    w.agent.engine.dispatch()
 
 
 def _subscribes(w: Wire[HumanInterface]) -> list[tuple[str | None, str | None]]:
@@ -59,10 +59,10 @@ def test_a_his_subscription_waits_for_a_co_backs_off_and_cancels_a_late_agree() 
     ((cid, rw),) = _subscribes(hi)
     sub = hi.agent.progress
     assert cid == "hi-progress" and sub.pending and not sub.subscribed
-    pending = hi.agent.pending_replies.get(rw or "")
+    pending = hi.agent.engine.pending_replies.get(rw or "")
     assert pending is not None
     pending.deadline = 0.0  # a_co did not answer in time
-    hi.agent.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
+    hi.agent.engine.pending_replies.expect(pending)  # moved by hand: expected again, so it is looked at
     _tick(hi)
     hi.step("interact")
     assert not sub.pending and sub.retry_at is not None and len(_subscribes(hi)) == 1
@@ -103,14 +103,14 @@ def test_a_restarted_agent_subscribes_in_a_conversation_its_earlier_process_did_
     bus = MemoryBus()
     km = Wire(KnowledgeManager, bus)
     km.agent.setup()
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     ((cid, rw),) = [(m.conversation_id, m.reply_with) for m in km.mine(P.SUBSCRIBE)]
     km.deliver(communicate(P.REFUSE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=rw))
     km.step("idle")
     assert [m.conversation_id for m in km.mine(P.SUBSCRIBE)] == ["km-environment", "km-environment-2"]
     again = Wire(KnowledgeManager, MemoryBus())  # the restarted process
     again.agent.setup()
-    again.agent._dispatch()
+    again.agent.engine.dispatch()
     assert [m.conversation_id for m in again.mine(P.SUBSCRIBE)] == ["km-environment-3"]
     assert (tmp_path / "a_km.subscriptions.json").is_file()
 
@@ -119,7 +119,7 @@ def test_a_kms_subscription_goes_at_start_again_at_once_and_when_a_ta_is_back() 
     bus = MemoryBus()
     km = Wire(KnowledgeManager, bus)
     km.agent.setup()
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     ((cid, rw),) = [(m.conversation_id, m.reply_with) for m in km.mine(P.SUBSCRIBE)]
     assert cid == "km-environment"
     km.deliver(communicate(P.REFUSE, "a_ta", "a_km", "fipa-subscribe", cid, in_reply_to=rw))
@@ -131,18 +131,18 @@ def test_a_kms_subscription_goes_at_start_again_at_once_and_when_a_ta_is_back() 
     assert km.agent.environment.subscribed
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))
-    km.agent._acquire()
-    km.agent._dispatch()
+    km.agent.engine.acquire()
+    km.agent.engine.dispatch()
     assert len(km.mine(P.SUBSCRIBE)) == 2  # its first appearance: the subscription stands
     ta.close()
-    km.agent._acquire()
+    km.agent.engine.acquire()
     assert not km.agent.environment.subscribed
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     assert len(km.mine(P.SUBSCRIBE)) == 2  # away: it waits for a_ta
     ta = bus.transport()
     ta.announce(keys.alive_key("a_ta"))
-    km.agent._acquire()
-    km.agent._dispatch()
+    km.agent.engine.acquire()
+    km.agent.engine.dispatch()
     # back: a restarted a_ta has lost it; one that kept it is told to stop serving it (cancel)
     assert [m.conversation_id for m in km.mine(P.SUBSCRIBE)][-1] == "km-environment-3"
     (cancel,) = km.mine(P.CANCEL)
@@ -158,7 +158,7 @@ def test_one_role_keeps_two_subscriptions_apart_and_unsubscribe_ends_one() -> No
     is refused."""
     km = Wire(KnowledgeManager)
     km.agent.setup()
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     env = km.agent.environment
     watch = km.agent.roles.subscribe(
         "C6",
@@ -167,7 +167,7 @@ def test_one_role_keeps_two_subscriptions_apart_and_unsubscribe_ends_one() -> No
         conversation_id="km-watch",
         at_start=True,
     )
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     sent = {m.conversation_id: m.reply_with for m in km.mine(P.SUBSCRIBE)}
     assert set(sent) == {"km-environment", "km-watch"}
     km.deliver(
@@ -185,13 +185,13 @@ def test_one_role_keeps_two_subscriptions_apart_and_unsubscribe_ends_one() -> No
     with pytest.raises(KeyError, match="keeps the subscription km-watch"):
         km.agent.roles.subscribe("C6", "fipa-subscribe", Subscription("watch"), conversation_id="km-watch")
     km.agent.roles.unsubscribe(watch)
-    km.agent._dispatch()
+    km.agent.engine.dispatch()
     (cancel,) = km.mine(P.CANCEL)
     assert cancel.conversation_id == "km-watch" and not watch.subscribed and watch.retry_at is None
     assert env.subscribed  # the other subscription of the role stands
     watch.retry_at = 0.0  # were an attempt due, none is made: the role keeps it no more
-    km.agent._acquire()
-    km.agent._dispatch()
+    km.agent.engine.acquire()
+    km.agent.engine.dispatch()
     assert [m.conversation_id for m in km.mine(P.SUBSCRIBE)].count("km-watch") == 1
     km.agent.roles.unsubscribe(watch)  # not kept: nothing
     assert len(km.mine(P.CANCEL)) == 1

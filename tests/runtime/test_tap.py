@@ -67,11 +67,13 @@ class Asker(Agent):
         )
 
     def setup(self) -> None:
-        self.send("a_km", Performative.QUERY_REF, ObjectQuery("jar"), protocol="fipa-query", reply_by_s=0.1)
+        self.engine.send(
+            "a_km", Performative.QUERY_REF, ObjectQuery("jar"), protocol="fipa-query", reply_by_s=0.1
+        )
 
     def _collect(self) -> None:
-        while self.x:
-            if self.x.popleft().performative is Performative.FAILURE:
+        while self.engine.x:
+            if self.engine.x.popleft().performative is Performative.FAILURE:
                 self.failed.set()
 
 
@@ -82,13 +84,13 @@ def test_an_agent_records_its_fsm_its_transitions_and_its_time_outs(
     monkeypatch.setenv(Settings.env_name("run_dir"), str(run_dir))
     monkeypatch.setenv(Settings.env_name("tap_dir"), str(tap))
     agent = Asker(MemoryBus().transport())
-    agent.bind()
-    t = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    t = threading.Thread(target=agent.engine.run, daemon=True)
     t.start()
     try:
         assert agent.failed.wait(5)
     finally:
-        agent.stop()
+        agent.engine.stop()
         t.join(timeout=5)
     for folder in (run_dir, tap):
         (path,) = record_files(folder)

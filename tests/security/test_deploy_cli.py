@@ -1,5 +1,5 @@
 """``roco deploy``: a deployment's credentials folder, one identity issued again and one revoked
-(services/deploy/cli.py, deploy.py, certs.py)."""
+(services/cli/deploy.py, services/deploy/deploy.py, services/security/certs.py)."""
 
 from __future__ import annotations
 

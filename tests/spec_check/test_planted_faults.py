@@ -19,7 +19,7 @@ from services.spec_check.code_check import verify_code_report
 PLANTED = {
     "variable_send": "agent a_pl uses Performative.PROPOSE, which none of its roles may send "
     "(variable_send.py:",
-    "raw_send": "agent a_pl sends with self.send to a_hi outside its roles (raw_send.py:",
+    "raw_send": "agent a_pl sends with self.engine.send to a_hi outside its roles (raw_send.py:",
     "no_channel": "agent a_pl opens fipa-query on C2, where it declares no initiator role (no_channel.py:",
     "named_channel": "agent a_pl opens fipa-query on C7, where it declares no initiator role "
     "(named_channel.py:",

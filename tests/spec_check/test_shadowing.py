@@ -19,18 +19,23 @@ def test_the_kitchen_s_agents_replace_only_what_an_agent_may() -> None:
 def test_a_helper_named_like_a_runtime_attribute_is_refused_and_a_hook_is_not() -> None:
     spec = default_spec()
     planner = agent_class(spec, "a_pl")
-    private = "_ended"  # set on self by the runtime's __init__: the helper of that name broke it
 
     def helper(self: object) -> bool:
         return True
 
-    shadowed = type("Planner2", (planner,), {private: helper, "setup": lambda self: None})
+    shadowed = type("Planner2", (planner,), {"engine": helper, "setup": lambda self: None})
     (problem,) = shadowing("a_pl", shadowed)
-    assert (
-        problem == f"agent a_pl: Planner2.{private} replaces the runtime's Agent.{private}: name it otherwise"
-    )
+    assert problem == "agent a_pl: Planner2.engine replaces the runtime's Agent.engine: name it otherwise"
     assert "setup" in OVERRIDABLE
-    public = type("Planner3", (planner,), {"send": helper})
+    public = type("Planner3", (planner,), {"post": helper})
     assert shadowing("a_pl", public) == [
-        "agent a_pl: Planner3.send replaces the runtime's Agent.send: name it otherwise"
+        "agent a_pl: Planner3.post replaces the runtime's Agent.post: name it otherwise"
     ]
+
+
+def test_the_engine_s_own_names_are_out_of_an_agent_s_way() -> None:
+    """A helper named like one of the engine's attributes (``_ended``, which once broke the
+    runtime when the agent and its engine were one class) replaces nothing now."""
+    planner = agent_class(default_spec(), "a_pl")
+    own = type("Planner4", (planner,), {"_ended": lambda self: True, "send": lambda self: None})
+    assert shadowing("a_pl", own) == []

@@ -221,15 +221,15 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
     km = agent_class(spec, "a_km")(bus.transport(), spec)
     watch = agent_class(spec, "a_wt")(bus.transport(), spec)
     for agent in (km, watch):
-        agent.bind()
-    thread = threading.Thread(target=km.run, daemon=True)
+        agent.engine.bind()
+    thread = threading.Thread(target=km.engine.run, daemon=True)
     thread.start()
 
     def until(counter: str) -> None:
         for _ in range(400):  # each acquire blocks until input arrives or 0.05 s pass
-            watch._acquire(0.05)
+            watch.engine.acquire(0.05)
             watch.handle_received()
-            watch._dispatch()  # what the agent's loop publishes after each step
+            watch.engine.dispatch()  # what the agent's loop publishes after each step
             if watch.counters[counter]:
                 break
         assert watch.counters[counter] == 1, dict(watch.counters)
@@ -251,7 +251,7 @@ def test_stage_3_the_finished_agent_conforms_and_warns_the_person_of_a_tipped_bo
         assert told(warning) == "the bowl has tipped over"  # what a_hi tells the person
         assert watch.counters["changes"] == 2 and warned.empty()
     finally:
-        km.stop()
+        km.engine.stop()
         thread.join(timeout=5)
         km.close()  # type: ignore[attr-defined]
 

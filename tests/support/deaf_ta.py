@@ -8,6 +8,8 @@ again is the real one. A test names it as a_ta's implementation in a copy of the
 
 from __future__ import annotations
 
+from typing import Any
+
 from services.agents.task_executor.agent import TaskExecutor
 from services.runtime import keys
 from shared.settings import Settings
@@ -23,10 +25,17 @@ class ThreadKiller(BaseException):
 class DeafTaskExecutor(TaskExecutor):
     """:class:`TaskExecutor` whose receiving thread ends at a_co's first C1 communicate of the run."""
 
-    def _on_payload(self, key: str, payload: bytes) -> None:
-        if key == keys.fipa_key("C1", "a_co", self.name) and _first_time():
-            raise ThreadKiller("planted: a_ta's receiving thread ends")
-        super()._on_payload(key, payload)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        engine = self.engine
+        heard = engine._on_payload  # the engine subscribes what it finds here when it binds
+
+        def on_payload(key: str, payload: bytes) -> None:
+            if key == keys.fipa_key("C1", "a_co", self.name) and _first_time():
+                raise ThreadKiller("planted: a_ta's receiving thread ends")
+            heard(key, payload)
+
+        engine._on_payload = on_payload  # type: ignore[method-assign]
 
 
 def _first_time() -> bool:

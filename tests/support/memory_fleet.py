@@ -60,16 +60,16 @@ class MemoryFleet:
 
     def __enter__(self) -> Self:
         for a in self.agents:
-            a.bind()
+            a.engine.bind()
         for a in self.agents:
-            t = threading.Thread(target=a.run, name=a.name, daemon=True)
+            t = threading.Thread(target=a.engine.run, name=a.name, daemon=True)
             t.start()
             self.threads.append(t)
         return self
 
     def __exit__(self, *exc: object) -> None:
         for a in self.agents:
-            a.stop()
+            a.engine.stop()
         for t in self.threads:
             t.join(timeout=5)
 

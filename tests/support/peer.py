@@ -82,15 +82,15 @@ def running(*agents: Agent) -> Iterator[None]:
     """``agents`` bound and each running its FSM in a thread of its own; stopped at the end."""
     threads = []
     for a in agents:
-        a.bind()
+        a.engine.bind()
     for a in agents:
-        t = threading.Thread(target=a.run, name=a.name, daemon=True)
+        t = threading.Thread(target=a.engine.run, name=a.name, daemon=True)
         t.start()
         threads.append(t)
     try:
         yield
     finally:
         for a in agents:
-            a.stop()
+            a.engine.stop()
         for t in threads:
             t.join(timeout=5)

@@ -216,15 +216,15 @@ def test_ag_ex_starts_the_camera_and_stops_it_before_the_executor(
     agent = Ex(MemoryBus().transport())
     fake.agent = agent
     assert agent.rerun is not None
-    agent.bind()
-    thread = threading.Thread(target=agent.run, daemon=True)
+    agent.engine.bind()
+    thread = threading.Thread(target=agent.engine.run, daemon=True)
     thread.start()
     try:
         assert set_up.wait(60)
         assert agent.rerun.camera is not None
         assert agent.rerun.camera.wait_frames(2, timeout=120), agent.rerun.camera.failed
     finally:
-        agent.stop()
+        agent.engine.stop()
         thread.join(10)
         agent.close()
     assert fake.camera_running_at_stop is False

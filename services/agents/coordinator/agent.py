@@ -154,7 +154,7 @@ class Coordinator(Agent):
             kept_in_all=PROGRESS_KEPT,
             dropped="progress_dropped",
         )
-        self.rerun = self.hooks.queue(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
+        self.rerun = self.engine.hooks.queue(self.name) if self.engine.hooks else None  # a viewer
 
     def build_fsm(self) -> FSM:
         return FSM(

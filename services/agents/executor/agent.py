@@ -143,7 +143,7 @@ class ExecutorAgent(Agent):
 
         read = Settings.from_env(only=("seed", "pose_seed", "realtime"))  # ValueError: a bad seed
         world = self._world_link() if world_in_process() else None
-        rerun_camera = self.hooks.camera_wanted() if self.hooks else False
+        rerun_camera = self.engine.hooks.camera_wanted() if self.engine.hooks else False
         return ExecutorProcess(
             realtime=read.realtime,
             seed=read.seed,
@@ -212,7 +212,7 @@ class ExecutorAgent(Agent):
         self.executor = self.make_executor()
         self.commanders = self._commanders()
         self.link_watch = self._link_watch()
-        self.rerun = self.hooks.robot(self.name) if self.hooks else None  # a viewer: runtime/hooks.py
+        self.rerun = self.engine.hooks.robot(self.name) if self.engine.hooks else None  # a viewer
 
     def build_fsm(self) -> FSM:
         return FSM(
@@ -285,7 +285,7 @@ class ExecutorAgent(Agent):
             sorted(
                 {
                     cp.initiator
-                    for ch in self.spec.channels
+                    for ch in self.engine.spec.channels
                     if self.name in ch.ends
                     for cp in ch.protocols
                     if cp.initiator != self.name
@@ -324,7 +324,7 @@ class ExecutorAgent(Agent):
         self._start_camera()
         self._start_feed()
         for peer in self.commanders:
-            self.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
+            self.engine.transport.watch(keys.alive_key(peer), self._on_liveliness(peer))
         decoder = msgspec.json.Decoder(Disturbance)
 
         def on_disturb(_key: str, payload: bytes) -> None:  # Zenoh thread: enqueue only
@@ -333,14 +333,14 @@ class ExecutorAgent(Agent):
             except msgspec.DecodeError as exc:
                 self.log.warning("ignored malformed disturbance: %s", exc)
 
-        self.transport.subscribe(keys.SIM_DISTURB, on_disturb)
+        self.engine.transport.subscribe(keys.SIM_DISTURB, on_disturb)
 
     def _start_camera(self) -> None:
         """Rerun: the head camera, rendered in a thread of this process (never in the loop's)
         from the whole simulation state the loop copies (``world_state``), when the hooks want
         it (``camera_wanted``: the loop copies the state for the watch too)."""
         world = getattr(self.executor, "world", None)
-        wanted = self.hooks.camera_wanted() if self.hooks else False
+        wanted = self.engine.hooks.camera_wanted() if self.engine.hooks else False
         if (
             self.rerun is not None
             and world is not None
@@ -358,7 +358,7 @@ class ExecutorAgent(Agent):
         camera_feed.py): rendered in a thread of this process from the world state the loop
         copies, only while a subscriber matches; none without the world state or a Zenoh session."""
         world = getattr(self.executor, "world", None)
-        transport = getattr(self.transport, "inner", self.transport)  # under the fault layer
+        transport = getattr(self.engine.transport, "inner", self.engine.transport)  # under the fault layer
         session = getattr(transport, "session", None)
         if world is None or session is None or not getattr(self.executor, "world_state", False):
             return

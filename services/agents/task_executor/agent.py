@@ -567,7 +567,8 @@ class TaskExecutor(Agent):
         conv = self.plan_request
         if conv is not None:
             step = self.step.path if self.step is not None else None
-            between = self.state == "running" and self.outcome is None and 0 <= self.index < len(self.leaves)
+            running = self.engine.state == "running"
+            between = running and self.outcome is None and 0 <= self.index < len(self.leaves)
             if step is None and between:
                 # between two leaves (e.g. after a set-down's ``put``, an Assert with no motion):
                 # the next one, so that a restart finishes the set-down (seen: killed there, the

@@ -48,29 +48,34 @@ with ``remember``), the oldest forgotten first."""
 
 class Roles:
     """The protocol roles of one agent at run time: its declarations, its handlers, the
-    conversations open in each role. Built by :class:`~services.runtime.agent.Agent` from its
+    conversations open in each role. Built by services/runtime/engine.py ``Engine`` from its agent's
     class's ``roles`` and :func:`handles` methods; raises RoleMismatch (one line) when they
     differ from the specification (:func:`role_problems`)."""
 
-    def __init__(self, agent: RoleHost, declared: Sequence[RoleDecl], *, check: bool = True) -> None:
-        self.host = agent
-        """The agent these roles belong to (:class:`~services.runtime.roles.host.RoleHost`)."""
-        self.declared = tuple(expand_roles(agent.spec, agent.name, declared))
+    def __init__(
+        self, host: RoleHost, agent: object, declared: Sequence[RoleDecl], *, check: bool = True
+    ) -> None:
+        self.host = host
+        """The engine running the agent these roles belong to
+        (:class:`~services.runtime.roles.host.RoleHost`)."""
+        self.agent = agent
+        """The agent, whose handlers (:func:`handles` methods) the roles call."""
+        self.declared = tuple(expand_roles(host.spec, host.name, declared))
         """The declared roles, each on EVERY_CHANNEL replaced by those it stands for."""
         self._handlers = handlers_of(type(agent))
-        problems = agent_problems(agent.spec, agent.name, type(agent)) if check else []
+        problems = agent_problems(host.spec, host.name, type(agent)) if check else []
         if problems:
             more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
             raise RoleMismatch(problems[0] + more)
         self._by_peer: dict[tuple[str, str], RoleDecl] = {}
-        channels = {ch.name: ch for ch in agent.spec.channels}
+        channels = {ch.name: ch for ch in host.spec.channels}
         for decl in self.declared:
             ends = channels[decl.channel].ends
-            peer = ends[1] if ends[0] == agent.name else ends[0]
+            peer = ends[1] if ends[0] == host.name else ends[0]
             self._by_peer[(peer, decl.protocol)] = decl
         self._peer_of = {decl: peer for (peer, _), decl in self._by_peer.items()}
         self._tables = {
-            key: role_table(decl, machine_of(agent.spec, decl.protocol), self._handlers)
+            key: role_table(decl, machine_of(host.spec, decl.protocol), self._handlers)
             for key, decl in self._by_peer.items()
         }
         """:attr:`_by_peer`'s roles as :class:`RoleTable`\\s, what :meth:`take` looks up."""
@@ -621,7 +626,7 @@ class Roles:
             if sub is not None and not sub.take(conv):
                 pass  # an answer the subscription's role acts on itself
             elif method is not None:
-                getattr(self.host, method)(conv)
+                getattr(self.agent, method)(conv)
             elif cancel:
                 conv.refuse_with(Performative.FAILURE, "this conversation cannot be cancelled")
             elif deadline:

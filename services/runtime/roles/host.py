@@ -1,7 +1,7 @@
-"""What the protocol roles ask of the agent they belong to, and what a kept subscription
-asks of the roles: two small protocols (PEP 544), so that the roles reach their agent
-(services/runtime/agent.py ``Agent``) through these members alone, as the receiving half does
-through services/runtime/admission.py ``Host``.
+"""What the protocol roles ask of the engine that runs their agent, and what a kept
+subscription asks of the roles: two small protocols (PEP 544), so that the roles reach the
+engine (services/runtime/engine.py ``Engine``) through these members alone, as the receiving
+half does through services/runtime/admission.py ``Host``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ __all__ = ["RoleHost", "SubscriptionHost"]
 
 class RoleHost(Protocol):
     """What :class:`~services.runtime.roles.dispatch.Roles` asks of its agent
-    (services/runtime/agent.py ``Agent``): its name and specification, its input buffer ``x``,
+    (services/runtime/engine.py ``Engine``): its name and specification, its input buffer ``x``,
     its log and counters, the peers alive, its clocks and identifiers, the replies it awaits,
     the protocol state of its conversations and the answers it keeps, and sending."""
 

@@ -47,20 +47,20 @@ class Wire:
         self.agent = Coordinator(self.bus.transport())
         self.out: list[Communicate] = []
         self.bus.subscribe(keys.FIPA_ALL, lambda _key, payload: self.out.append(decode(payload)))
-        self.agent.bind()
+        self.agent.engine.bind()
 
     def deliver(self, msg: Communicate, state: str = "trigger") -> None:
         """Take ``msg`` into a_co's input buffer, then run one step of behaviour ``state``."""
         assert msg.sender is not None
-        channel = channel_between(self.agent.spec, msg.sender.name, self.agent.name)
+        channel = channel_between(self.agent.engine.spec, msg.sender.name, self.agent.name)
         assert channel is not None
-        self.agent._take(keys.fipa_key(channel.name, msg.sender.name, self.agent.name), encode(msg))
-        self.agent.protocol_states.commit()
+        self.agent.engine.take(keys.fipa_key(channel.name, msg.sender.name, self.agent.name), encode(msg))
+        self.agent.engine.protocol_states.commit()
         self.step(state)
 
     def step(self, state: str) -> None:
-        self.agent.fsm.states[state].transition()
-        self.agent._dispatch()
+        self.agent.engine.fsm.states[state].transition()
+        self.agent.engine.dispatch()
         self.agent.persist()
 
     def last(self, performative: Performative, receiver: str) -> Communicate:
@@ -83,8 +83,8 @@ def command(w: Wire, cid: str = "cmd-1") -> None:
     w.deliver(
         communicate(P.REQUEST, "a_hi", "a_co", "fipa-request", cid, POUR, reply_with=f"{cid}-r"), "procReq"
     )
-    w.agent.fsm.states["compSP"].on_enter()
-    w.agent._dispatch()
+    w.agent.engine.fsm.states["compSP"].on_enter()
+    w.agent.engine.dispatch()
     w.agent.persist()
 
 

@@ -64,17 +64,17 @@ class ScriptedCo(Agent):
             action = self.r.popleft()
             if action is not None:
                 action(self)
-        while self.x:
-            item = self.x.popleft()
+        while self.engine.x:
+            item = self.engine.x.popleft()
             if item.performative is Performative.SUBSCRIBE:
                 self.subscribes.append(item.msg.conversation_id or "")
                 self.subscribe_seen.put(item.msg.conversation_id or "")
                 if self.mode == "agree":
                     self.subscription = item
-                    self.reply(item, Performative.AGREE)
+                    self.engine.reply(item, Performative.AGREE)
                     self.subscribed.set()
                 elif self.mode == "not-understood":
-                    self.not_understood(item.sender, item.channel, "unexpected subscribe", item.msg)
+                    self.engine.not_understood(item.sender, item.channel, "unexpected subscribe", item.msg)
                 continue
             self.inbox.put(item)
 
@@ -85,7 +85,7 @@ class ScriptedCo(Agent):
     def progress(self, progress: Progress) -> None:
         """Inform a_hi's subscription (call inside an action)."""
         assert self.subscription is not None
-        self.reply(self.subscription, Performative.INFORM, progress)
+        self.engine.reply(self.subscription, Performative.INFORM, progress)
 
     def receive(self, performative: Performative, timeout: float = TIMEOUT) -> Received:
         """The next received communicate with ``performative`` (others are skipped)."""
@@ -137,8 +137,8 @@ class Stage:
         self.hi: HumanInterface | None = None
 
     def start(self, agent: Agent) -> None:
-        agent.bind()
-        t = threading.Thread(target=agent.run, name=agent.name, daemon=True)
+        agent.engine.bind()
+        t = threading.Thread(target=agent.engine.run, name=agent.name, daemon=True)
         t.start()
         self.agents.append((agent, t))
 
@@ -154,7 +154,7 @@ class Stage:
 
     def stop(self) -> None:
         for agent, _ in self.agents:
-            agent.stop()
+            agent.engine.stop()
         for _, t in self.agents:
             t.join(timeout=TIMEOUT)
 
@@ -185,10 +185,12 @@ def test_command_agree_progress_inform_gives_readable_reports(stage: Stage) -> N
     cid = request.msg.conversation_id
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
+        co.engine.reply(request, Performative.AGREE)
         co.progress(Progress(command_id=cid, state=TaskState.PLANNING, detail="plan #1 requested"))
         co.progress(Progress(command_id=cid, state=TaskState.RUNNING, step="pour(jar,bowl)/fetch_jar/grasp"))
-        co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done"))
+        co.engine.reply(
+            request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done")
+        )
 
     co.do(run)
     reports = person.until_final("r1")
@@ -198,7 +200,7 @@ def test_command_agree_progress_inform_gives_readable_reports(stage: Stage) -> N
         (ReportKind.PROGRESS, "pour the jar into the bowl: running pour(jar,bowl)/fetch_jar/grasp"),
         (ReportKind.SUCCEEDED, "pour the jar into the bowl: succeeded; done"),
     ]
-    assert not hi.commands and len(hi.pending_replies) == 1  # only the subscription stays open
+    assert not hi.commands and len(hi.engine.pending_replies) == 1  # only the subscription stays open
 
 
 def test_the_outcomes_told_are_kept_across_a_restart_and_given_to_whoever_asks(
@@ -214,8 +216,10 @@ def test_the_outcomes_told_are_kept_across_a_restart_and_given_to_whoever_asks(
     cid = request.msg.conversation_id or ""
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
-        co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done"))
+        co.engine.reply(request, Performative.AGREE)
+        co.engine.reply(
+            request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done")
+        )
 
     co.do(run)
     final = person.until_final("r1")[-1]
@@ -242,7 +246,7 @@ def test_priority_and_deadline_reach_a_co(stage: Stage) -> None:
     second = co.receive(Performative.REQUEST)
     assert isinstance(second.content, HumanCommand)
     assert second.content.goal == TaskAtom("hand_over", ("jar",)) and second.content.priority == 5
-    co.do(lambda co: co.reply(first, Performative.AGREE))
+    co.do(lambda co: co.engine.reply(first, Performative.AGREE))
     assert person.next("r1").text == "I will bring the cup to the table (priority 3, within 120 s)."
 
 
@@ -253,7 +257,7 @@ def test_preemption_and_failure_are_reported_with_their_detail(stage: Stage) -> 
     cid = request.msg.conversation_id or ""
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
+        co.engine.reply(request, Performative.AGREE)
         co.progress(
             Progress(
                 command_id=cid,
@@ -262,7 +266,7 @@ def test_preemption_and_failure_are_reported_with_their_detail(stage: Stage) -> 
                 detail="for 'bring the cup to the table'",
             )
         )
-        co.reply(
+        co.engine.reply(
             request,
             Performative.FAILURE,
             CommandOutcome(command_id=cid, succeeded=False, detail="grasp failed: injected failure"),
@@ -282,7 +286,11 @@ def test_refuse_is_a_failed_report_with_the_reason(stage: Stage) -> None:
     co, _hi, person = _ready(stage)
     person.say("pour the cup into the bowl", "r1")
     request = co.receive(Performative.REQUEST)
-    co.do(lambda co: co.fail(request, Performative.REFUSE, "I do not know how to pour the cup into the bowl"))
+    co.do(
+        lambda co: co.engine.fail(
+            request, Performative.REFUSE, "I do not know how to pour the cup into the bowl"
+        )
+    )
     (report,) = person.until_final("r1")
     assert report.kind is ReportKind.FAILED
     assert (
@@ -296,7 +304,9 @@ def test_stop_sends_cancel_in_every_open_command_conversation(stage: Stage) -> N
     first = co.receive(Performative.REQUEST)
     person.say("bring me the cup", "r2")
     second = co.receive(Performative.REQUEST)
-    co.do(lambda co: (co.reply(first, Performative.AGREE), co.reply(second, Performative.AGREE)))
+    co.do(
+        lambda co: (co.engine.reply(first, Performative.AGREE), co.engine.reply(second, Performative.AGREE))
+    )
     assert person.next("r1").kind is ReportKind.ACCEPTED
     assert person.next("r2").kind is ReportKind.ACCEPTED
 
@@ -312,7 +322,9 @@ def test_stop_sends_cancel_in_every_open_command_conversation(stage: Stage) -> N
     def answer(co: ScriptedCo) -> None:
         for c in cancels:
             detail = "stopped; the jar was put down on the table" if c.msg.conversation_id == "cmd-r1" else ""
-            co.reply(c, Performative.INFORM, CommandOutcome(command_id="", succeeded=False, detail=detail))
+            co.engine.reply(
+                c, Performative.INFORM, CommandOutcome(command_id="", succeeded=False, detail=detail)
+            )
 
     co.do(answer)
     r1 = person.next("r1")
@@ -331,17 +343,21 @@ def test_a_cancel_that_fails_leaves_the_command_open_and_the_stop_failed(stage: 
     co, hi, person = _ready(stage)
     person.say("pour the jar into the bowl", "r1")
     request = co.receive(Performative.REQUEST)
-    co.do(lambda co: co.reply(request, Performative.AGREE))
+    co.do(lambda co: co.engine.reply(request, Performative.AGREE))
     assert person.next("r1").kind is ReportKind.ACCEPTED
     person.say("cancel", "r2")
     cancel = co.receive(Performative.CANCEL)
-    co.do(lambda co: co.fail(cancel, Performative.FAILURE, "the pour cannot be interrupted"))
+    co.do(lambda co: co.engine.fail(cancel, Performative.FAILURE, "the pour cannot be interrupted"))
     final = person.until_final("r2")[-1]
     assert final.kind is ReportKind.FAILED
     assert final.text == "pour the jar into the bowl: could not be stopped; the pour cannot be interrupted"
     assert "cmd-r1" in hi.commands
     cid = request.msg.conversation_id or ""
-    co.do(lambda co: co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True)))
+    co.do(
+        lambda co: co.engine.reply(
+            request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True)
+        )
+    )
     assert person.until_final("r1")[-1].kind is ReportKind.SUCCEEDED
 
 
@@ -353,8 +369,8 @@ def test_an_outcome_crossing_the_cancel_ends_the_stop_too(stage: Stage) -> None:
     cancel = co.receive(Performative.CANCEL)
 
     def run(co: ScriptedCo) -> None:  # the outcome was on its way when the cancel came
-        co.reply(request, Performative.INFORM, CommandOutcome(command_id="cmd-r1", succeeded=True))
-        co.fail(cancel, Performative.FAILURE, "already finished")
+        co.engine.reply(request, Performative.INFORM, CommandOutcome(command_id="cmd-r1", succeeded=True))
+        co.engine.fail(cancel, Performative.FAILURE, "already finished")
 
     co.do(run)
     assert person.until_final("r1")[-1].kind is ReportKind.SUCCEEDED
@@ -392,7 +408,7 @@ def test_status_query_reports_one_line_per_task(stage: Stage) -> None:
             TaskStatus(command_id="cmd-x", text="bring me the cup", state=TaskState.WAITING, priority=5),
         )
     )
-    co.do(lambda co: co.reply(query, Performative.INFORM_REF, status))
+    co.do(lambda co: co.engine.reply(query, Performative.INFORM_REF, status))
     (report,) = person.until_final("r2")
     assert report.kind is ReportKind.STATUS
     assert report.text.splitlines() == [
@@ -405,7 +421,7 @@ def test_status_with_no_tasks_and_without_an_answer(stage: Stage) -> None:
     co, _hi, person = _ready(stage)
     person.say("status", "r1")
     query = co.receive(Performative.QUERY_REF)
-    co.do(lambda co: co.reply(query, Performative.INFORM_REF, Status()))
+    co.do(lambda co: co.engine.reply(query, Performative.INFORM_REF, Status()))
     (report,) = person.until_final("r1")
     assert (report.kind, report.text) == (
         ReportKind.STATUS,
@@ -413,7 +429,7 @@ def test_status_with_no_tasks_and_without_an_answer(stage: Stage) -> None:
     )
     person.say("what are you doing", "r2")
     query = co.receive(Performative.QUERY_REF)
-    co.do(lambda co: co.fail(query, Performative.REFUSE, "busy"))
+    co.do(lambda co: co.engine.fail(query, Performative.REFUSE, "busy"))
     (report,) = person.until_final("r2")
     assert report.kind is ReportKind.STATUS
     assert report.text.startswith("a_co did not tell me its status (busy)")
@@ -471,7 +487,7 @@ def test_malformed_and_unexpected_communicates_get_not_understood(stage: Stage) 
 
     person.say("hand me the cup", "r1")  # a_hi keeps working
     request = co.receive(Performative.REQUEST)
-    co.do(lambda co: co.reply(request, Performative.AGREE))
+    co.do(lambda co: co.engine.reply(request, Performative.AGREE))
     assert person.next("r1").kind is ReportKind.ACCEPTED
     assert hi.counters["behaviour_errors"] == 0 and hi.counters["handler_errors"] == 0
 
@@ -488,8 +504,8 @@ def test_a_co_that_does_not_serve_subscriptions(stage: Stage, monkeypatch: pytes
     cid = request.msg.conversation_id or ""
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
-        co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True))
+        co.engine.reply(request, Performative.AGREE)
+        co.engine.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True))
 
     co.do(run)
     kinds = [r.kind for r in person.until_final("r1")]
@@ -512,7 +528,7 @@ def test_subscribes_when_a_co_comes_up_later(stage: Stage, monkeypatch: pytest.M
     cid = request.msg.conversation_id or ""
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
+        co.engine.reply(request, Performative.AGREE)
         co.progress(Progress(command_id=cid, state=TaskState.WAITING, detail="for the robot"))
 
     co.do(run)

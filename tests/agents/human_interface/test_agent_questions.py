@@ -168,7 +168,7 @@ def test_a_question_open_when_a_km_went_away_is_asked_again_of_the_a_km_back(sta
     say(stage, "where is the cup?", "q1")
     try:
         assert asked.wait(5.0)
-        transport = km.transport
+        transport = km.engine.transport
         assert isinstance(transport, MemoryTransport)
         transport.withdraw(keys.alive_key("a_km"))  # gone: its session ended
         transport.announce(keys.alive_key("a_km"))  # back: a restarted a_km

@@ -27,7 +27,9 @@ def _two_commands(co: ScriptedCo, person: Person) -> None:
     first = co.receive(Performative.REQUEST)
     person.say("bring me the cup", "r2")
     second = co.receive(Performative.REQUEST)
-    co.do(lambda co: (co.reply(first, Performative.AGREE), co.reply(second, Performative.AGREE)))
+    co.do(
+        lambda co: (co.engine.reply(first, Performative.AGREE), co.engine.reply(second, Performative.AGREE))
+    )
     assert person.next("r1").kind is ReportKind.ACCEPTED
     assert person.next("r2").kind is ReportKind.ACCEPTED
 

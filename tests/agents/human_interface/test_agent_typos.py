@@ -30,9 +30,11 @@ def test_a_corrected_command_says_what_was_read_in_its_first_report_only(stage: 
     cid = request.msg.conversation_id or ""
 
     def run(co: ScriptedCo) -> None:
-        co.reply(request, Performative.AGREE)
+        co.engine.reply(request, Performative.AGREE)
         co.progress(Progress(command_id=cid, state=TaskState.PLANNING, detail="plan #1 requested"))
-        co.reply(request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done"))
+        co.engine.reply(
+            request, Performative.INFORM, CommandOutcome(command_id=cid, succeeded=True, detail="done")
+        )
 
     co.do(run)
     reports = person.until_final("r1")
@@ -47,7 +49,7 @@ def test_a_corrected_status_question_and_stop_say_it_too(stage: Stage) -> None:
     co, _hi, person = _ready(stage)
     person.say("what are you doimg?", "r1")
     query = co.receive(Performative.QUERY_REF)
-    co.do(lambda co: co.reply(query, Performative.INFORM_REF, Status()))
+    co.do(lambda co: co.engine.reply(query, Performative.INFORM_REF, Status()))
     (report,) = person.until_final("r1")
     assert (report.kind, report.text) == (
         ReportKind.STATUS,
@@ -65,7 +67,7 @@ def test_a_typod_stop_stops_the_running_command(stage: Stage) -> None:
     co, _hi, person = _ready(stage)
     person.say("bring me the cup", "r1")
     request = co.receive(Performative.REQUEST)
-    co.do(lambda co: co.reply(request, Performative.AGREE))
+    co.do(lambda co: co.engine.reply(request, Performative.AGREE))
     person.say("oh no, sotp", "r2")
     cancel = co.receive(Performative.CANCEL)
     assert cancel.msg.conversation_id == request.msg.conversation_id

@@ -101,7 +101,7 @@ class SilentKm(Agent):
         return FSM([Behaviour("idle", self._idle, terminal=lambda: False)])
 
     def _idle(self) -> None:
-        self.x.clear()
+        self.engine.x.clear()
 
 
 def _with_silent_km(stage: Stage) -> ScriptedCo:

@@ -113,7 +113,7 @@ def test_a_hi_given_a_task_words_file_sends_the_new_task_to_a_co(tmp_path: Path)
         request = co.receive(Performative.REQUEST)
         assert isinstance(request.content, HumanCommand)
         assert request.content.goal == TaskAtom("wipe", ("cup", "table"))
-        co.do(lambda co: co.reply(request, Performative.AGREE))
+        co.do(lambda co: co.engine.reply(request, Performative.AGREE))
         accepted = stage.person.next("r1")
         assert (accepted.kind, accepted.text) == (ReportKind.ACCEPTED, "I will wipe the table with the cup.")
     finally:

@@ -123,13 +123,13 @@ def running_km() -> Iterator[tuple[KnowledgeManager, Peer]]:
     bus = MemoryBus()
     peer = Peer(bus)
     km = KnowledgeManager(bus.transport())
-    km.bind()
-    thread = threading.Thread(target=km.run, name="a_km", daemon=True)
+    km.engine.bind()
+    thread = threading.Thread(target=km.engine.run, name="a_km", daemon=True)
     thread.start()
     try:
         yield km, peer
     finally:
-        km.stop()
+        km.engine.stop()
         thread.join(timeout=TIMEOUT_S)
         assert not thread.is_alive()
         km.close()  # what services.runtime.main does after run() ends

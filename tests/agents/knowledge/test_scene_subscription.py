@@ -112,13 +112,13 @@ def running_km(
     monkeypatch.delenv("ROCO_RUN_DIR", raising=False)
     bus = bus or MemoryBus()
     km = KnowledgeManager(bus.transport(), spec)
-    km.bind()
-    thread = threading.Thread(target=km.run, name="a_km", daemon=True)
+    km.engine.bind()
+    thread = threading.Thread(target=km.engine.run, name="a_km", daemon=True)
     thread.start()
     try:
         yield km, bus
     finally:
-        km.stop()
+        km.engine.stop()
         thread.join(timeout=TIMEOUT_S)
         assert not thread.is_alive()
         km.close()
@@ -295,8 +295,8 @@ def test_a_restarted_km_serves_the_subscription_the_subscriber_makes_again(
     spec = watcher_spec(tmp_path)
     bus = MemoryBus()
     watcher = Watcher(bus.transport(), spec)
-    watcher.bind()
-    thread = threading.Thread(target=watcher.run, name="a_wt", daemon=True)
+    watcher.engine.bind()
+    thread = threading.Thread(target=watcher.engine.run, name="a_wt", daemon=True)
     thread.start()
     try:
         for stamp, attempt in ((1.0, "wt-scene"), (10.0, "wt-scene-2")):  # a_km, then restarted
@@ -308,7 +308,7 @@ def test_a_restarted_km_serves_the_subscription_the_subscriber_makes_again(
                 change = watcher.changes.get(timeout=TIMEOUT_S)
                 assert change.object == "jar" and change.changed == ("moved",) and change.stamp == stamp + 1.0
                 assert list(km.watches) == [WT_CHANNEL]
-            km.transport.close()  # its liveliness token goes, as when its process ends
+            km.engine.transport.close()  # its liveliness token goes, as when its process ends
     finally:
-        watcher.stop()
+        watcher.engine.stop()
         thread.join(timeout=TIMEOUT_S)

@@ -12,6 +12,6 @@ class Planner(Base):
     _on_request = None  # type: ignore[assignment]
 
     def _idle(self) -> None:
-        if self.x and self.x[0].performative is Performative.REQUEST:
+        if self.engine.x and self.engine.x[0].performative is Performative.REQUEST:
             return
         super()._idle()

@@ -12,4 +12,4 @@ class Planner(Base):
 
     def _done(self) -> None:
         super()._done()
-        self.send("a_hi", Performative.INFORM, None, protocol="fipa-request")
+        self.engine.send("a_hi", Performative.INFORM, None, protocol="fipa-request")

@@ -1,18 +1,16 @@
-"""``roco send`` and ``roco disturb``: give a running fleet a command, or move an object of
-its simulated kitchen."""
+"""``roco send``: give a running fleet a command and wait for its outcome
+(services/control/talk.py, services/runtime/reports.py)."""
 
 from __future__ import annotations
 
 import queue
 import time
-import uuid
 from pathlib import Path
 from typing import Annotated
 
-import msgspec
 import typer
 
-from services.cli_common import (
+from services.cli.common import (
     CredentialsOption,
     FleetRunsDir,
     RouterOption,
@@ -22,12 +20,12 @@ from services.cli_common import (
     fleet_system,
     operator_session,
 )
-from services.runtime import keys
-from services.runtime.human import FINAL_REPORTS, HumanInput, HumanReport
+from services.control.talk import say
+from services.runtime.human import FINAL_REPORTS, HumanReport
 from services.runtime.reports import MissedOutcomes, ReportFilter, follow_reports, next_report
 from services.runtime.session import alive_agents
 
-talk_app = typer.Typer()
+send_app = typer.Typer()
 
 
 def _show_notice(report: HumanReport) -> None:
@@ -35,7 +33,7 @@ def _show_notice(report: HumanReport) -> None:
     typer.echo(report.notice_line)
 
 
-@talk_app.command(short_help="Give a running fleet a command and wait for its outcome.")
+@send_app.command(short_help="Give a running fleet a command and wait for its outcome.")
 def send(
     command: Annotated[str, typer.Argument(help="what the person says")],
     router: RouterOption = None,
@@ -66,9 +64,7 @@ def send(
     if interface not in alive_agents(session):
         session.close()
         raise fail(f"{interface} is not alive at {endpoint}")
-    request_id = uuid.uuid4().hex[:8]
-    said = HumanInput(text=command, request_id=request_id, priority=priority, person=person)
-    session.put(keys.HUMAN_IN, msgspec.json.encode(said))
+    request_id = say(session, command, priority, person)
     deadline = time.monotonic() + timeout
     missed = MissedOutcomes(session)
     try:
@@ -81,34 +77,3 @@ def send(
         raise fail(f"no outcome within {timeout:.0f} s")
     finally:
         session.close()
-
-
-@talk_app.command(short_help="Move or tip over an object of the simulated kitchen.")
-def disturb(
-    obj: Annotated[str, typer.Argument(metavar="OBJECT", help="a free body of the kitchen: jar, bowl, cup")],
-    dx: Annotated[float, typer.Option(help="metres along world x")] = 0.0,
-    dy: Annotated[float, typer.Option(help="metres along world y")] = 0.0,
-    dz: Annotated[float, typer.Option(help="metres along world z")] = 0.0,
-    tilt: Annotated[float, typer.Option(help="radians about world x: tips the object over")] = 0.0,
-    router: RouterOption = None,
-    runs_dir: FleetRunsDir = Path("runs"),
-    credentials: CredentialsOption = None,
-) -> None:
-    """Move or knock over an object of the simulated kitchen, as a person would (a disturbance
-    of the world, not a robot command): ag_ex moves the body and its content and stops them."""
-    import json
-
-    from velma.executor.ground_truth import CONTAINERS
-
-    if obj not in CONTAINERS:
-        raise fail(f"cannot move {obj!r}: the kitchen's movable objects are {', '.join(CONTAINERS)}", code=2)
-    endpoint = endpoint_of(router, runs_dir)
-    session = operator_session(endpoint, credentials, None if router else runs_dir)
-    try:
-        if "ag_ex" not in alive_agents(session):
-            raise fail(f"ag_ex is not alive at {endpoint}")
-        session.put(keys.SIM_DISTURB, json.dumps({"object": obj, "delta": [dx, dy, dz], "tilt": tilt}))
-    finally:
-        session.close()
-    turn = f", tilted {tilt:+.2f} rad" if tilt else ""
-    typer.echo(f"roco: asked ag_ex to move the {obj} by ({dx:+.3f}, {dy:+.3f}, {dz:+.3f}) m{turn}")

@@ -1,6 +1,6 @@
 """What ``roco run``, ``scenario``, ``chaos`` and ``up`` set up before a fleet starts: the
 specification it runs, the perception check, the scene's environment, Rerun recording and
-viewer, the live view."""
+viewer, the live view (services/cli/run.py, scenario.py, chaos.py, up.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from services.cli_common import chosen_spec, fail
+from services.cli.common import chosen_spec, fail
 from shared.settings import Settings
 
 if TYPE_CHECKING:
@@ -31,19 +31,12 @@ def live_watch(title: str, live: bool | None, quiet: bool, system: SystemSpec) -
     return LiveWatch(title, system.launch_order, console=console, notice_protocols=notice_protocols(system))
 
 
-def missing_kitchen_agents(system: SystemSpec) -> tuple[str, ...]:
-    """The Robot Companion's agents ``system`` lacks: none for the kitchen, also grown by agents
-    of its own (docs/spec.md's walk-through)."""
-    from services.spec.model import default_spec
-
-    return tuple(a for a in default_spec().launch_order if a not in system.agent_names)
-
-
 def kitchen_spec(given: Path | None, command: str, why: str) -> Path:
     """The specification ``command`` runs: ``given`` (``--spec``, ``ROCO_SPEC``), else the
-    shipped one (cli_common.py ``chosen_spec``). One line and exit 2 when it is another
-    system than the kitchen (:func:`missing_kitchen_agents`), saying ``why`` ``command``
-    needs the kitchen."""
+    shipped one (services/cli/common.py ``chosen_spec``). One line and exit 2 when it is
+    another system than the kitchen (services/scenario/model.py ``missing_kitchen_agents``),
+    saying ``why`` ``command`` needs the kitchen."""
+    from services.scenario.model import missing_kitchen_agents
     from services.spec.model import load
 
     path = chosen_spec(given)

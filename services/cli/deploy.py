@@ -14,7 +14,7 @@
                                                         system's: in its folder, services/deploy/
                                                         layout.py)
 
-Bad input: one line starting with ``roco:``, exit 2.
+Bad input: one line starting with ``roco:``, exit 2. The work is services/deploy/'s.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, shown
-from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load, system_root
+from services.cli.common import MARKUP, CheckOnly, SpecFile, fail, shown
+from services.spec.model import DEFAULT_SPEC, SpecError, SystemSpec, load
 
 if TYPE_CHECKING:
     from services.deploy.layout import Layout
@@ -210,28 +210,24 @@ def _check_compose(generated: GeneratedFile, path: Path, system: SystemSpec, lay
     differs. Raises ComposeError as ``GeneratedFile.check``."""
     from services.deploy import netfault
     from services.deploy.compose import described
+    from services.deploy.compose_files import compose_problem
 
-    override = netfault.beside(path)
-    problem = generated.check(path, system, shown(path)) or netfault.check(override, system, shown(override))
+    problem = compose_problem(generated, path, system, shown)
     if problem is not None:
         raise fail(problem)
     typer.echo(f"roco: {shown(path)} is what the specification gives ({described(system, layout)})")
-    typer.echo(f"roco: {shown(override)} is what the specification gives")
+    typer.echo(f"roco: {shown(netfault.beside(path))} is what the specification gives")
 
 
 def _write_compose(generated: GeneratedFile, path: Path, system: SystemSpec) -> None:
-    """``roco deploy compose``: write both files (the folder made when missing), saying what
+    """``roco deploy compose``: write both files (services/deploy/compose_files.py), saying what
     each holds. Raises ComposeError when a file cannot be written or ``system`` rendered."""
     from services.deploy import netfault
-    from services.deploy.compose import ComposeError, hardware
+    from services.deploy.compose import hardware
+    from services.deploy.compose_files import write_compose_files
 
+    changed, override_changed = write_compose_files(generated, path, system)
     override = netfault.beside(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ComposeError(f"{path.parent}: cannot make the folder: {exc.strerror or exc}") from None
-    changed = generated.write(path, system)
-    override_changed = netfault.write(override, system)
     agents = ", ".join(system.launch_order)
     if changed:
         others = ", ".join(["router", "recorder", "viewer", *hardware(system)])
@@ -242,56 +238,3 @@ def _write_compose(generated: GeneratedFile, path: Path, system: SystemSpec) -> 
         typer.echo(f"roco: wrote {shown(override)}: NET_ADMIN for {', '.join(netfault.services(system))}")
     else:
         typer.echo(f"roco: {shown(override)} is up to date")
-
-
-new_agent_app = typer.Typer()
-"""``roco spec new-agent`` (joined to the ``spec`` group by services/cli.py): it writes the
-compose files as well, and services/deploy imports services/spec_check, not the reverse."""
-
-
-@new_agent_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
-def spec_new_agent(
-    name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
-    spec: SpecFile = None,
-    root: Annotated[
-        Path | None,
-        typer.Option(
-            help="the folder the implementation's package path starts in [default: this checkout for "
-            "roco's specification, else the specification's folder]",
-            show_default=False,
-        ),
-    ] = None,
-) -> None:
-    """Write the folder of agent NAME from the specification: its protocol roles and one
-    handler per performative its peers may send, each raising NotImplementedError until
-    written, importing its names from the system's names module; render that module again
-    (`roco spec names`), and deploy/compose.yaml with a service for it and
-    deploy/compose.netfault.yaml where they exist (docs/spec.md, "Walk-through: adding an
-    agent"). Exit 1, nothing written, when the file exists, the specification has no such
-    agent, or a file cannot be rendered."""
-    from services.deploy import netfault
-    from services.deploy.compose import COMPOSE, ComposeError, compose_for
-    from services.deploy.layout import KITCHEN, LayoutError, layout_for
-    from services.spec import render_names
-    from services.spec_check.new_agent import write_agent
-
-    path = spec or DEFAULT_SPEC
-    try:
-        system = load(path)
-        home = root or system_root(path)
-        compose_at = home / COMPOSE.relative  # a checkout's (--root): the kitchen's layout, else the system's
-        compose_file = compose_for(KITCHEN if root is not None else layout_for(path, compose_at))
-        files = [(compose_file, compose_at), (netfault.NETFAULT, home / netfault.NETFAULT.relative)]
-        for generated, at in files:  # what cannot be rendered is refused before anything is written
-            if at.is_file():
-                generated.render(system)
-        scaffold = write_agent(system, name, home)
-        typer.echo(f"roco: wrote {scaffold.module}")
-        names = render_names.names_file(path, system) if root is None else home / render_names.NAMES.relative
-        typer.echo(f"roco: {render_names.NAMES.bring_up_to_date_at(names, system)}")
-        for generated, at in files:
-            typer.echo(f"roco: {generated.bring_up_to_date_at(at, system)}")
-    except (SpecError, FileExistsError, ComposeError, LayoutError) as exc:
-        raise fail(str(exc)) from None
-    timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
-    typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}{timer}; then: roco spec verify-code")

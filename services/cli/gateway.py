@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import FleetRunsDir, RouterOption, SpecFile, endpoint_of, fleet_spec
+from services.cli.common import FleetRunsDir, RouterOption, SpecFile, endpoint_of, fleet_spec
 from shared.settings import GATEWAY_PORT
 
 gateway_app = typer.Typer()

@@ -1,6 +1,6 @@
-"""``roco run`` and ``roco scenario``: the whole system on one command or a scripted session,
-each command's outcome checked (services/scenario/runner.py). ``roco run`` runs the system of
-its specification (``--spec``); ``roco scenario`` the kitchen's scenarios, so the kitchen only."""
+"""``roco run``: the whole system of its specification (``--spec``) on one command, to the end
+of the task (services/scenario/runner.py), and how a run of ``roco run`` and ``roco scenario``
+starts and ends: the report written, one line of outcome, the exit status."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import (
+from services.cli.common import (
     AclOption,
     GatewayOption,
     LiveOption,
@@ -31,19 +31,19 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
-from services.ros2.live_cli import ros2_args
+from services.cli.report import finish_report
+from services.cli.ros2 import ros2_args
+from services.cli.run_env import live_watch, scene_env, viewer_env
 from services.runtime.run_folder import RunInfo
-from services.scenario.run_env import kitchen_spec, live_watch, scene_env, viewer_env
 from services.spec.model import load
-from services.spec_check.report_cli import finish_report
 
 if TYPE_CHECKING:
     from services.live.watch import LiveWatch
 
-scenario_app = typer.Typer()
+run_app = typer.Typer()
 
 
-@scenario_app.command(short_help="Run the whole system on one command, to the end of the task.")
+@run_app.command(short_help="Run the whole system on one command, to the end of the task.")
 def run(
     command: Annotated[str, typer.Argument(help="what the person says, e.g. 'pour the jar into the bowl'")],
     runs_dir: RunsDirMade = Path("runs"),
@@ -83,63 +83,8 @@ def run(
         name="", steps=(Step(say=command),), seed=seed, pose_seed=pose_seed, timeout_s=timeout
     )
     watch = live_watch("roco run", live, quiet, system)
-    _run_scenario(
+    run_scenario(
         scenario,
-        runs_dir,
-        spec=path,
-        realtime=realtime,
-        quiet=quiet,
-        record=record,
-        view=view,
-        watch=watch,
-        gateway=gateway,
-        ros2=face,
-    )
-
-
-@scenario_app.command(short_help="Run a scripted session and check every command's outcome.")
-def scenario(
-    name: Annotated[
-        str | None, typer.Argument(help="a scenario file, or the name of one in the library")
-    ] = None,
-    runs_dir: RunsDirMade = Path("runs"),
-    realtime: Annotated[bool, typer.Option(help="pace the simulation to wall time")] = False,
-    quiet: Annotated[bool, typer.Option(help="print only the outcome")] = False,
-    list_: Annotated[bool, typer.Option("--list", help="list the library's scenarios")] = False,
-    record: RecordOption = True,
-    view: ViewOption = False,
-    acl: AclOption = None,
-    tls: TlsOption = None,
-    live: LiveOption = None,
-    gateway: GatewayOption = None,
-    ros2: Ros2Option = False,
-    ros2_domain: Ros2DomainOption = 0,
-    ros2_namespace: Ros2NamespaceOption = "/",
-    spec: SpecFile = None,
-) -> None:
-    """Run a scenario (several commands, interruptions, disturbances, restarts; see
-    services/scenario/model.py) headless, check every command's outcome against what the
-    scenario expects, and write the report. Exit 0 only when everything went as expected and
-    no requirement was flagged violated during the run (docs/spec.md, the live monitor), 130
-    when interrupted. Scenarios are the kitchen's: another system (--spec) is refused."""
-    from services.scenario.model import ScenarioError, library, load_scenario
-
-    security_switches(acl, tls)
-    if list_:
-        for stem, sc in library().items():
-            typer.echo(f"{stem:24s} {sc.name}: {sc.description}")
-        return
-    if name is None:
-        raise fail("name a scenario file or a library scenario (roco scenario --list)", code=2)
-    path = kitchen_spec(spec, "roco scenario", "plays the kitchen's scenarios, whose steps name its agents")
-    try:
-        sc = load_scenario(name)
-    except ScenarioError as exc:
-        raise fail(str(exc), code=2) from None
-    face = ros2_args(ros2, ros2_domain, ros2_namespace)
-    watch = live_watch(f"roco scenario {sc.name}", live, quiet, load(path))
-    _run_scenario(
-        sc,
         runs_dir,
         spec=path,
         realtime=realtime,
@@ -157,7 +102,7 @@ def _run_echo(say: Callable[[str], None], quiet: bool) -> Callable[[str], None]:
     return lambda line: say(line) if not quiet or "→ person" in line else None
 
 
-def _run_scenario(
+def run_scenario(
     sc: object,
     runs_dir: Path,
     *,
@@ -173,7 +118,7 @@ def _run_scenario(
     """Run scenario ``sc`` (services/scenario/model.py) with a fleet of the specification
     ``spec`` in a new run folder under ``runs_dir``
     and end as `roco run` and `roco scenario` do: the report written, one line of outcome,
-    exit 1 on failure (:func:`_exit_on_failure`), 130 when interrupted. The port of
+    exit 1 on failure (:func:`exit_on_failure`), 130 when interrupted. The port of
     ``gateway`` is checked free before anything starts."""
     from services.fleet.launcher import spec_env
     from services.monitor import progress_line
@@ -210,34 +155,20 @@ def _run_scenario(
     finish_report(run_dir, info, interrupted=outcome.interrupted)
     if sc.name:
         typer.echo(outcome.summary())
-    _exit_on_failure(sc.name, outcome.ok, info.detail, run_dir, outcome.raised_line())
+    exit_on_failure(sc.name, outcome.ok, info.detail, run_dir, outcome.raised_line())
 
 
-def _exit_on_failure(name: str, ok: bool, detail: str, run_dir: Path, raised: str = "") -> None:
+def exit_on_failure(name: str, ok: bool, detail: str, run_dir: Path, raised: str = "") -> None:
     """Exit 1 with one line when the run failed (scenario ``name``, or ``roco run`` when
-    empty), a requirement was flagged violated during it (:func:`_violated`) or an agent raised
-    (``raised``: services/runtime/raised.py ``raised_text``, "" when none did)."""
-    violated = _violated(run_dir)
+    empty), a requirement was flagged violated during it (services/recorder/flags.py
+    ``violated_words``) or an agent raised (``raised``: services/runtime/raised.py
+    ``raised_text``, "" when none did)."""
+    from services.recorder.flags import violated_words
+
+    violated = violated_words(run_dir)
     also = "; ".join(x for x in (violated, raised and f"agents raised: {raised}") if x)
     if not ok:
         what = "the task failed" if not name else f"scenario “{name}” did not go as expected"
         raise fail(f"{what}: {detail}{also and '; ' + also} (run folder {run_dir})")
     if also:
         raise fail(f"{also} (run folder {run_dir})")
-
-
-def _violated(run_dir: Path) -> str:
-    """``requirement R3.3 violated during the run: …`` for the requirements the live monitor
-    flagged in ``run_dir`` (services/recorder/flags.py), the first one's flag in words; empty
-    when none was flagged."""
-    from services.recorder.flags import read_flags
-
-    try:
-        flags = read_flags(run_dir)
-    except OSError as exc:
-        return f"the live requirement flags cannot be read: {exc}"
-    if not flags:
-        return ""
-    ids = sorted({f.requirement for f in flags})
-    which = f"requirement{'s' if len(ids) > 1 else ''} {', '.join(ids)}"
-    return f"{which} violated during the run: {flags[0].line()}"

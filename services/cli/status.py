@@ -1,5 +1,6 @@
 """``roco status``: which agents of a running fleet are alive, their counters, what the
-routers refused and the requirements the live monitor flagged violated."""
+routers refused (services/control/status.py names them) and the requirements the live monitor
+flagged violated."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import (
+from services.cli.common import (
     CredentialsOption,
     FleetRunsDir,
     RouterOption,
@@ -114,38 +115,10 @@ def status(
         raise typer.Exit(1)
 
 
-ROUTER_LOG_LIMIT = 16 * 2**20
-"""Bytes of a router's log read for the lines that name it (its start lines come first)."""
-
-
 def _routers_named(runs_dir: Path, endpoint: str, mine: set[str]) -> dict[str, str]:
-    """Zenoh id → a name of every router of the fleet in ``runs_dir`` (:func:`_router_names`),
-    and of the routers ``mine`` this session reached (``at <endpoint>``) otherwise unnamed."""
+    """Zenoh id → a name of every router of the fleet in ``runs_dir`` and of the routers
+    ``mine`` this session reached (services/control/status.py ``routers_named``)."""
+    from services.control.status import routers_named
+
     state = fleet_state(runs_dir)
-    names = _router_names(Path(state.run_dir) if state is not None else None)
-    names.update({z: f"at {endpoint}" for z in mine if z not in names})
-    return names
-
-
-def _router_names(run_dir: Path | None) -> dict[str, str]:
-    """Zenoh id → a name an operator knows, for every router the run folder's logs say started
-    (``logs/router*.stderr``; services/runtime/router.py prints ``roco router ZID listening on
-    ENDPOINTS`` at each start): ``brain`` and ``robot`` for the routers of `roco hosts`
-    (router_brain, router_robot), else ``at`` its endpoints. Empty without a run folder."""
-    names: dict[str, str] = {}
-    if run_dir is None:
-        return names
-    for log in sorted((run_dir / "logs").glob("router*.stderr")):
-        process = log.name.removesuffix(".stderr")
-        try:
-            with log.open("rb") as f:
-                text = f.read(ROUTER_LOG_LIMIT).decode("utf-8", "replace")
-        except OSError:
-            continue
-        for line in text.splitlines():
-            if not line.startswith("roco router ") or " listening on " not in line:
-                continue
-            zid, _, rest = line.removeprefix("roco router ").partition(" listening on ")
-            host = process.removeprefix("router_") if process.startswith("router_") else ""
-            names[zid.strip()] = host or f"at {rest.split(';')[0].strip()}"
-    return names
+    return routers_named(Path(state.run_dir) if state is not None else None, endpoint, mine)

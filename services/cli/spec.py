@@ -1,5 +1,6 @@
 """``roco spec``: show and check the specification, verify code and runs against it
-(docs/spec.md). ``roco spec new-agent`` writes deployment files too: services/deploy/cli.py."""
+(docs/spec.md; services/spec_check/), and write a new system or agent from it (``roco spec
+new-agent`` brings the compose files up to date too: services/deploy/new_agent.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import MARKUP, CheckOnly, SpecFile, fail, run_folder, shown
+from services.cli.common import MARKUP, CheckOnly, SpecFile, fail, run_folder, shown
 from shared.settings import Settings
 
 if TYPE_CHECKING:
@@ -388,3 +389,36 @@ def spec_names(
         f"{len(typed.channels)} channels, {len(typed.protocols)} protocols, {len(typed.languages)} languages"
     )
     typer.echo(f"roco: wrote {name} ({counts})" if changed else f"roco: {name} is up to date ({counts})")
+
+
+@spec_app.command("new-agent", short_help="Write a new agent's folder from the specification.")
+def spec_new_agent(
+    name: Annotated[str, typer.Argument(metavar="NAME", help="the agent, as [[agents]] names it")],
+    spec: SpecFile = None,
+    root: Annotated[
+        Path | None,
+        typer.Option(
+            help="the folder the implementation's package path starts in [default: this checkout for "
+            "roco's specification, else the specification's folder]",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Write the folder of agent NAME from the specification: its protocol roles and one
+    handler per performative its peers may send, each raising NotImplementedError until
+    written, importing its names from the system's names module; render that module again
+    (`roco spec names`), and deploy/compose.yaml with a service for it and
+    deploy/compose.netfault.yaml where they exist (docs/spec.md, "Walk-through: adding an
+    agent"). Exit 1, nothing written, when the file exists, the specification has no such
+    agent, or a file cannot be rendered."""
+    from services.deploy.compose import ComposeError
+    from services.deploy.layout import LayoutError
+    from services.deploy.new_agent import add_agent
+    from services.spec.model import DEFAULT_SPEC, SpecError
+
+    try:
+        scaffold = add_agent(spec or DEFAULT_SPEC, name, root, lambda line: typer.echo(f"roco: {line}"))
+    except (SpecError, FileExistsError, ComposeError, LayoutError) as exc:
+        raise fail(str(exc)) from None
+    timer = f" and what {scaffold.timer} opens" if scaffold.timer else ""
+    typer.echo(f"roco: fill in {', '.join(scaffold.handlers)}{timer}; then: roco spec verify-code")

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import fail, run_folder
+from services.cli.common import fail, run_folder
 from services.runtime.session import port_in_use
 
 view_app = typer.Typer()

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import (
+from services.cli.common import (
     AclOption,
     LiveOption,
     RecordOption,
@@ -23,11 +23,11 @@ from services.cli_common import (
     security_switches,
     stop_on_signals,
 )
+from services.cli.report import finish_report
+from services.cli.run_env import kitchen_spec, live_watch, scene_env, viewer_env
 from services.runtime.run_folder import RunInfo
 from services.scenario.model import DEFAULT_COMMAND
-from services.scenario.run_env import kitchen_spec, live_watch, scene_env, viewer_env
 from services.spec.model import default_spec, load
-from services.spec_check.report_cli import finish_report
 from shared.settings import Settings
 
 if TYPE_CHECKING:

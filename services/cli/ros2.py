@@ -1,4 +1,5 @@
-"""``roco ros2``: a live ROS 2 face on the fleet's own Zenoh (services/ros2/live.py)."""
+"""``roco ros2``: a live ROS 2 face on the fleet's own Zenoh (services/ros2/live.py), and the
+arguments of the face that ``roco run``, ``scenario`` and ``up`` start with ``--ros2``."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import FleetRunsDir, RouterOption, SpecFile, endpoint_of, fail, fleet_spec
+from services.cli.common import FleetRunsDir, RouterOption, SpecFile, endpoint_of, fail, fleet_spec
 
 ros2_app = typer.Typer()
 
@@ -84,7 +85,7 @@ def _require_extra() -> None:
 
 
 def _write_package(out: Path) -> None:
-    from services.cli_common import fail
+    from services.cli.common import fail
     from services.ros2.package import write_package
 
     try:

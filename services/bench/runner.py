@@ -1,38 +1,11 @@
-"""`roco bench`: measure what roco costs on this machine, print each part's table, and write
-them all to `docs/benchmarks.md` with the command, commit, machine and load.
-
-Parts (`--only` takes a comma-separated subset; default all, in this order):
-
-- `codec`: encoding and decoding one communicate of 200 B, 10 kB and 1 MB;
-- `messaging`: round trip and one-way stream between two agents, and raw Zenoh's;
-- `spade`: the same round trip and stream on SPADE, over XMPP;
-- `jade`: the same round trip and stream on JADE, two containers in two JVMs, compiled from a
-  JADE source tree (`--jade-home`; skipped, with one line saying what is missing, without a
-  tree or a JDK);
-- `knowledge`: a_km's answers to the planner's queries, in process and over Zenoh;
-- `planning`: plan #1 of the pour, from the request to the plan;
-- `fleet`: `roco up` until every agent is alive, and its processes' memory;
-- `memory`: an idle agent's and the whole fleet's memory (VmRSS and PSS);
-- `task`: the whole pour with `roco run`, and its 1 kHz loop;
-- `scale`: 10 to 100 agent processes sharing one router, then two routers;
-- `gateway`: `roco gateway` with 100 peers at once, 500 in one burst, and under the worst requests;
-- `stop`: a stop's latency, from the line "stop" reaching a_hi to ag_ex's halt, with and without
-  a long line before it;
-- `reading`: a_hi's reading time against the length of a line.
-
-Each timed part first waits for a quiet machine (`--settle`). `--quick` shrinks every count (a
-smoke test of the command, not figures to quote). A part that fails is reported in the
-document with its error; the others still run.
-
-A whole run (every part, full counts, none failed) to the default output also rewrites
-README.md's figures table from docs/benchmarks.md and docs/bench/
-(services/bench/readme_figures.py); any other run leaves README.md as it is.
-"""
+"""One ``roco bench`` run (its command: services/cli/bench.py): the parts chosen measured in
+order, each part's table printed and its section kept, then docs/benchmarks.md (or the output
+asked for) written with the command, commit, machine and load, and README.md's figures table
+from it after a whole run (services/bench/readme_figures.py)."""
 
 from __future__ import annotations
 
 import functools
-import os
 import shutil
 import sys
 import tempfile
@@ -41,9 +14,7 @@ import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
-
-import typer
+from typing import TYPE_CHECKING, Any
 
 from services.bench import quiet
 from services.bench.setup_check import SetupRefused
@@ -71,24 +42,6 @@ PARTS = (
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
 
-bench_app = typer.Typer(
-    add_completion=False,
-    help=__doc__,
-    short_help="Measure roco on this machine and write docs/benchmarks.md.",
-    invoke_without_command=True,
-    rich_markup_mode="markdown",
-)
-
-
-def _parts(only: str | None) -> list[str]:
-    if not only:
-        return list(PARTS)
-    chosen = [p.strip() for p in only.split(",") if p.strip()]
-    unknown = [p for p in chosen if p not in PARTS]
-    if unknown:
-        raise typer.BadParameter(f"unknown part(s) {', '.join(unknown)}; parts: {', '.join(PARTS)}")
-    return [p for p in PARTS if p in chosen]
-
 
 @dataclass
 class _Bench:
@@ -113,21 +66,19 @@ class _Bench:
 
     def settled(self, label: str) -> None:
         if self.settle > 0:
-            typer.echo(
-                f"roco bench: waiting up to {self.settle:.0f} s for a quiet machine ({label})…", err=True
-            )
+            _say(f"roco bench: waiting up to {self.settle:.0f} s for a quiet machine ({label})…", err=True)
             self.conditions.append(f"{label}: {quiet.settle(self.settle).text()}")
 
     def run(self, name: str, fn: Callable[[], Any], timed: bool = False) -> Any:
         if timed:
             self.settled(f"before {name}")
-        typer.echo(f"roco bench: {name}…", err=True)
+        _say(f"roco bench: {name}…", err=True)
         t, cpu = time.perf_counter(), quiet.read() if timed else None
         try:
             self.results[name] = fn()
         except SetupRefused as exc:  # its set-up went wrong: no figure, one line says why
             self.errors[name] = str(exc)
-            typer.echo(f"roco: bench: {name}: {exc}", err=True)
+            _say(f"roco: bench: {name}: {exc}", err=True)
             self.results[name] = None
         except Exception as exc:  # one part failing must not lose the others
             self.errors[name] = f"{type(exc).__name__}: {exc}"
@@ -138,11 +89,11 @@ class _Bench:
             self.conditions.append(
                 f"during {name}: {during.steal * 100:.1f} % of the CPU time stolen by the hypervisor"
             )
-        typer.echo(f"roco bench: {name} done in {time.perf_counter() - t:.0f} s", err=True)
+        _say(f"roco bench: {name} done in {time.perf_counter() - t:.0f} s", err=True)
         return self.results[name]
 
     def emit(self, section: report.Section, verdicts: list[str] | None = None) -> None:
-        typer.echo("\n".join(section.lines()))
+        _say("\n".join(section.lines()))
         self.sections.append(section)
         self.targets.extend(verdicts or [])
 
@@ -184,7 +135,7 @@ class _Bench:
         try:
             return falls.recorded(ROOT)
         except falls.FiguresError as exc:
-            typer.echo(f"roco bench: no recorded ratios to compare with: {exc}", err=True)
+            _say(f"roco bench: no recorded ratios to compare with: {exc}", err=True)
             return None
 
     def notice_falls(self, before: falls.Ratios, now: MessagingSummary) -> None:
@@ -192,9 +143,9 @@ class _Bench:
         from services.bench import falls
 
         ratios = falls.Ratios.of(now)
-        typer.echo(falls.compared(before, ratios), err=True)
+        _say(falls.compared(before, ratios), err=True)
         for line in falls.falls(before, ratios):
-            typer.echo(line, err=True)
+            _say(line, err=True)
             self.conditions.append(line.removeprefix("roco bench: "))
 
     def jade_part(self) -> jade.JadeFigures | None:
@@ -206,7 +157,7 @@ class _Bench:
             return None
         why = jade.missing(self.jade_home)
         if why:
-            typer.echo(f"roco bench: jade: skipped: {why}", err=True)
+            _say(f"roco bench: jade: skipped: {why}", err=True)
             return jade.JadeFigures(skipped=why)
         home, n = self.jade_home, self.counts
         assert home is not None  # missing() said so
@@ -312,52 +263,22 @@ class _Bench:
             self.emit(report.failed_section(self.errors))
 
 
-@bench_app.callback()
-def bench(
-    only: Annotated[str | None, typer.Option(help=f"comma-separated parts of: {', '.join(PARTS)}")] = None,
-    quick: Annotated[
-        bool, typer.Option(help="small counts: checks the command, figures not to quote")
-    ] = False,
-    out: Annotated[
-        Path,
-        typer.Option(
-            help="the Markdown file written [default: docs/benchmarks.md of this checkout]",
-            show_default=False,
-        ),
-    ] = DEFAULT_OUT,
-    scale_agents: Annotated[
-        str, typer.Option(help="agent process counts of the scale part, comma-separated")
-    ] = "10,50,100",
-    settle: Annotated[
-        float | None,
-        typer.Option(
-            help="before each timed part, wait up to this many seconds for a quiet machine "
-            f"({quiet.quiet_rule()}); 0: do not wait "
-            f"[default: {quiet.DEFAULT_WAIT_S:.0f}; 0 with --quick]",
-            show_default=False,
-        ),
-    ] = None,
-    jade_home: Annotated[
-        Path | None,
-        typer.Option(
-            help="a JADE source tree, compiled and measured by the jade part "
-            f"[default: {Settings.env_name('jade_home')}; neither: the part is skipped]",
-            show_default=False,
-        ),
-    ] = None,
-) -> None:
-    """Run the benchmarks, print each table, write them to OUT (default docs/benchmarks.md)."""
+def run_bench(
+    chosen: list[str],
+    quick: bool,
+    settle: float,
+    out: Path,
+    scale_agents: str,
+    jade_home: Path | None,
+    command: str,
+) -> bool:
+    """Run the parts ``chosen`` (with ``quick``'s small counts, waiting up to ``settle`` s for a
+    quiet machine before each timed one), print each table, write them to ``out`` with the
+    ``command`` that ran them, and README.md's figures after a whole run; False when a part
+    failed or README.md's figures could not be written (each said in a line)."""
     from services.bench import report
 
-    if settle is None:
-        settle = 0.0 if quick else quiet.DEFAULT_WAIT_S
-    if settle < 0:
-        raise typer.BadParameter(f"--settle {settle:g}: expected seconds ≥ 0 (0: do not wait)")
-
-    chosen = _parts(only)
     started, t0, load_start = time.time(), time.perf_counter(), report.load()
-    args = " ".join(a for a in sys.argv[1:] if a != "bench")
-    command = f"roco bench {args}".strip()
     b = _Bench(chosen, quick, settle, report.Counts.of(quick))
     b.jade_home = jade_home or Settings.from_env(only=("jade_home",)).jade_home
     b.codec()
@@ -377,11 +298,9 @@ def bench(
     notes = NOTES.read_text() if NOTES.exists() else ""
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(report.document(run_lines, b.targets, b.sections, notes))
-    typer.echo("\n".join(report.targets_section(b.targets).lines()))
-    typer.echo(f"roco bench: wrote {out} in {seconds:.0f} s", err=True)
-    _readme_figures(chosen, quick, out, b.errors)
-    if b.errors:
-        raise typer.Exit(1)
+    _say("\n".join(report.targets_section(b.targets).lines()))
+    _say(f"roco bench: wrote {out} in {seconds:.0f} s", err=True)
+    return update_readme(chosen, quick, out, b.errors) and not b.errors
 
 
 def writes_readme(chosen: list[str], quick: bool, out: Path, errors: dict[str, str]) -> str | None:
@@ -396,30 +315,29 @@ def writes_readme(chosen: list[str], quick: bool, out: Path, errors: dict[str, s
     return None
 
 
-def _readme_figures(chosen: list[str], quick: bool, out: Path, errors: dict[str, str]) -> None:
-    """README.md's figures from the documents a whole run leaves (services/bench/readme_figures.py)."""
+def update_readme(chosen: list[str], quick: bool, out: Path, errors: dict[str, str]) -> bool:
+    """README.md's figures from the documents a whole run leaves (services/bench/readme_figures.py),
+    said in one line; False when they could not be written."""
     from services.bench import readme_figures
 
     why = writes_readme(chosen, quick, out, errors)
     if why is not None:
-        typer.echo(f"roco bench: README.md's figures left as they are ({why})", err=True)
-        return
+        _say(f"roco bench: README.md's figures left as they are ({why})", err=True)
+        return True
     try:
         readme_figures.write(ROOT)
     except (readme_figures.FiguresError, ValueError) as exc:
-        typer.echo(f"roco: README.md's figures not written: {exc}", err=True)
-        raise typer.Exit(1) from exc
-    typer.echo("roco bench: wrote README.md's figures", err=True)
+        _say(f"roco: README.md's figures not written: {exc}", err=True)
+        return False
+    _say("roco bench: wrote README.md's figures", err=True)
+    return True
+
+
+def _say(line: str, err: bool = False) -> None:
+    """``line`` on stdout (``err``: stderr), flushed at once: the parts' progress keeps its
+    order with their tables."""
+    print(line, file=sys.stderr if err else sys.stdout, flush=True)
 
 
 NOTES = Path(__file__).with_name("notes.md")
 """The hand-written "Method and where the time goes" appended to the generated document."""
-
-
-def main() -> None:  # ``python -m services.bench.cli``
-    os.environ.setdefault("PYTHONUNBUFFERED", "1")
-    bench_app()
-
-
-if __name__ == "__main__":
-    main()

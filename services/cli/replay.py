@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from services.cli_common import SpecFile, fail, run_folder
+from services.cli.common import SpecFile, fail, run_folder
 from services.spec.model import default_spec
 
 if TYPE_CHECKING:

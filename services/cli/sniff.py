@@ -1,4 +1,5 @@
-"""``roco sniff``: live communicates as they cross Zenoh, in FIPA SC00070 string form."""
+"""``roco sniff``: live communicates as they cross Zenoh, in FIPA SC00070 string form
+(services/sniff/sniffer.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import (
+from services.cli.common import (
     CredentialsOption,
     FleetRunsDir,
     RouterOption,

@@ -1,5 +1,5 @@
 """``roco hosts``: the fleet on two hosts made on this machine (docs/deploy.md, "Two hosts on
-one machine"; root, iproute2, nftables).
+one machine"; root, iproute2, nftables; services/hosts/).
 
     roco hosts up [--delay-ms 20 --jitter-ms 5 --loss-pct 1]   brain + robot, link shaped, fleet up
     roco hosts partition [SECONDS]     cut the link (for SECONDS, else until 'heal')
@@ -14,24 +14,21 @@ Bad input or a machine that cannot make namespaces: one line starting with ``roc
 
 from __future__ import annotations
 
-import json
 import signal
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
-import msgspec
 import typer
 
-from services.cli_common import INTERRUPTED, MARKUP, SpecFile, chosen_spec, fail, interrupt, new_run_folder
+from services.cli.common import INTERRUPTED, MARKUP, SpecFile, chosen_spec, fail, interrupt, new_run_folder
 from services.fleet_state import FLEET_FILE
+from services.hosts.state import HOSTS_FILE, HostsState, HostsStateError, read_state
 from shared.settings import Settings
 
 if TYPE_CHECKING:
     from services.hosts.fleet import TwoHosts
     from services.hosts.link import Shaping
-    from services.hosts.netns import HostPair
-    from services.runtime.run_folder import RunInfo
 
 hosts_app = typer.Typer(
     add_completion=False,
@@ -40,7 +37,6 @@ hosts_app = typer.Typer(
     help="The fleet on two hosts made on this machine: brain and robot, a shaped link (docs/deploy.md).",
     short_help="The fleet on two hosts of this machine, joined by a shaped link.",
 )
-HOSTS_FILE = ".hosts.json"
 RunsDir = Annotated[
     Path, typer.Option("--runs-dir", help="where 'roco hosts up' keeps the state of the two hosts")
 ]
@@ -54,32 +50,12 @@ UpRunsDir = Annotated[
 ]
 
 
-class HostsState(msgspec.Struct):
-    """What ``roco hosts up`` leaves for the other ``roco hosts`` commands."""
-
-    tag: str
-    subnet: int
-    maker: int
-    run_dir: str
-    endpoint: str
-    shaping: str
-    how: str
-
-
 def _state(runs_dir: Path) -> HostsState:
-    path = runs_dir / HOSTS_FILE
+    """The state of the two hosts up in ``runs_dir``; one line and exit 2 when there is none."""
     try:
-        return msgspec.json.decode(path.read_bytes(), type=HostsState)
-    except FileNotFoundError:
-        raise fail(f"no two-host fleet is up (no {path}); 'roco hosts up' first", 2) from None
-    except (OSError, msgspec.DecodeError, msgspec.ValidationError) as exc:
-        raise fail(f"{path}: not a hosts state file: {str(exc).splitlines()[0]}", 2) from None
-
-
-def _pair(state: HostsState) -> HostPair:
-    from services.hosts.netns import HostPair
-
-    return HostPair(state.tag, state.subnet, state.maker)
+        return read_state(runs_dir)
+    except HostsStateError as exc:
+        raise fail(str(exc), 2) from None
 
 
 def _up_shaping(runs_dir: Path, delay_ms: float, jitter_ms: float, loss_pct: float) -> Shaping:
@@ -100,22 +76,6 @@ def _up_shaping(runs_dir: Path, delay_ms: float, jitter_ms: float, loss_pct: flo
     return shaping
 
 
-def _not_up(hosts: TwoHosts, exc: BaseException, run_dir: Path, info: RunInfo) -> typer.Exit:
-    """The exit of a fleet that did not come up (``exc``; its hosts are removed already), once
-    its processes are noted and its report written."""
-    from services.runtime.run_folder import write_run_info
-    from services.spec_check.report_cli import fleet_end
-
-    interrupted = isinstance(exc, KeyboardInterrupt)
-    why = "interrupted" if interrupted else str(exc)
-    if hosts.fleet is not None:
-        info.processes = hosts.fleet.pids()
-        write_run_info(run_dir, info)
-    fleet_end(run_dir, failure=why)
-    code = INTERRUPTED if interrupted else 1
-    return fail(f"{why}; nothing of the fleet is left running; run folder {run_dir}", code)
-
-
 @hosts_app.command(short_help="Make brain and robot, shape the link, start the fleet across them.")
 def up(
     delay_ms: Annotated[float, typer.Option(min=0, help="one-way delay of the link, each direction")] = 20.0,
@@ -130,32 +90,21 @@ def up(
     between the routers, access control on); it keeps running until `roco hosts down`, which
     writes the run's report. A fleet that does not come up is stopped, its hosts removed and
     its report written."""
-    from services.fleet.launcher import LaunchError, spec_env
-    from services.hosts.fleet import TwoHosts
-    from services.hosts.netns import HostsError
-    from services.runtime.run_folder import RunInfo, write_run_info
+    from services.fleet.launcher import NotUp, spec_env
+    from services.hosts.lifecycle import start_two_hosts
+    from services.runtime.run_folder import RunInfo
 
     spec_file = chosen_spec(spec)
     shaping = _up_shaping(runs_dir, delay_ms, jitter_ms, loss_pct)
     run_dir = new_run_folder(runs_dir)
     info = RunInfo(started=time.time(), realtime=realtime)
-    write_run_info(run_dir, info)
     signal.signal(signal.SIGTERM, interrupt)
     env = {Settings.env_name("realtime"): "1" if realtime else "0", Settings.env_name("rerun"): "0"}
-    hosts = TwoHosts(run_dir, shaping, env=env | spec_env(spec_file))
     try:
-        waited = hosts.start()  # stops what it started and removes the hosts when it fails
-    except (HostsError, LaunchError, KeyboardInterrupt) as exc:
-        raise _not_up(hosts, exc, run_dir, info) from None
-    assert hosts.pair is not None and hosts.fleet is not None
-    pids = hosts.fleet.pids()
-    info.router, info.processes = hosts.endpoint, pids
-    write_run_info(run_dir, info)
-    p = hosts.pair
-    state = HostsState(p.tag, p.subnet, p.maker, str(run_dir), hosts.endpoint, str(shaping), hosts.how)
-    (runs_dir / HOSTS_FILE).write_bytes(msgspec.json.encode(state))
-    fleet = {"endpoint": hosts.endpoint, "run_dir": str(run_dir), "pids": pids}
-    (runs_dir / FLEET_FILE).write_text(json.dumps(fleet))
+        hosts, waited = start_two_hosts(run_dir, runs_dir, shaping, env | spec_env(spec_file), info)
+    except NotUp as exc:
+        code = INTERRUPTED if exc.interrupted else 1
+        raise fail(f"{exc.why}; nothing of the fleet is left running; run folder {run_dir}", code) from None
     typer.echo(
         f"roco: two hosts up in {waited:.1f} s: {_placed(hosts)}; link {shaping} ({hosts.how}); "
         f"operator endpoint {hosts.endpoint}; run folder {run_dir}"
@@ -184,7 +133,7 @@ def partition(
     from services.hosts import link
 
     state = _state(runs_dir)
-    pair, run_dir = _pair(state), Path(state.run_dir)
+    pair, run_dir = state.pair(), Path(state.run_dir)
     link.partition(pair, run_dir, None)
     if seconds is None:
         typer.echo("roco: link down; 'roco hosts heal' mends it")
@@ -192,7 +141,7 @@ def partition(
     signal.signal(signal.SIGTERM, interrupt)
     typer.echo(f"roco: link down for {seconds:g} s")
     try:
-        time.sleep(seconds)
+        time.sleep(seconds)  # the cut's length the user asked for
     except KeyboardInterrupt:
         pass
     finally:
@@ -206,7 +155,7 @@ def heal(runs_dir: RunsDir = Path("runs")) -> None:
     from services.hosts import link
 
     state = _state(runs_dir)
-    link.heal(_pair(state), Path(state.run_dir))
+    link.heal(state.pair(), Path(state.run_dir))
     typer.echo("roco: link up")
 
 
@@ -216,7 +165,7 @@ def status(runs_dir: RunsDir = Path("runs")) -> None:
     from services.hosts import link
 
     state = _state(runs_dir)
-    pair = _pair(state)
+    pair = state.pair()
     if not pair.exists():
         raise fail(f"the namespaces of {runs_dir / HOSTS_FILE} are gone; 'roco hosts down' clears it", 1)
     typer.echo(f"brain  {pair.netns('brain'):22s} link {pair.link_addr('brain')}  uplink {pair.uplink_addr}")
@@ -232,34 +181,14 @@ def down(runs_dir: RunsDir = Path("runs")) -> None:
     down`), the routers; remove both namespaces and their links; then record in the run's
     run.json the commands the fleet was given and their outcomes (from its C2 traffic) and
     write its report."""
-    from services.hosts.link import record_counters
-    from services.hosts.netns import end_processes
-    from services.recorder.sync import sync_fleet, sync_words
-    from services.spec_check.report_cli import fleet_end
+    from services.hosts.lifecycle import stop_two_hosts
+    from services.spec_check.run_report import fleet_end
 
     state = _state(runs_dir)
-    pair, run_dir = _pair(state), Path(state.run_dir)
-    fleet_file = runs_dir / FLEET_FILE
-    try:
-        pids = {str(n): int(p) for n, p in json.loads(fleet_file.read_text()).get("pids", {}).items()}
-    except (OSError, ValueError, AttributeError):
-        pids = {}
-    agents = {n: p for n, p in pids.items() if not n.startswith("router") and n not in ("recorder", "relay")}
     typer.echo("roco: stopping", nl=False)
-    end_processes(list(agents.values()), 10.0)
-    typer.echo("".join(f" {n}" for n in agents), nl=False)
-    if "recorder" in pids:
-        # everything the agents sent before they stopped is in the traffic record before it closes
-        synced = sync_fleet(state.endpoint, run_dir / "security")
-        typer.echo(f"; recorder: {sync_words(synced)}", nl=False)
-    end_processes([pids[n] for n in ("recorder", "relay") if n in pids], 10.0)
-    typer.echo("; routers", nl=False)
-    record_counters(pair, run_dir)
-    pair.destroy()  # ends what is left (the routers) and removes the namespaces
-    typer.echo("; both hosts removed")
-    fleet_file.unlink(missing_ok=True)
-    (runs_dir / HOSTS_FILE).unlink(missing_ok=True)
-    typer.echo(f"roco: two hosts down {fleet_end(run_dir)}")
+    stop_two_hosts(runs_dir, state, lambda words: typer.echo(words, nl=False))
+    typer.echo("")
+    typer.echo(f"roco: two hosts down {fleet_end(Path(state.run_dir))}")
 
 
 @hosts_app.command(short_help="Remove the host pairs that killed runs left behind.")

@@ -1,9 +1,10 @@
-"""What the command-line tools share: ``fail``, the exit status of an interrupted command, the
-options several commands take, and the checks and look-ups they make the same way.
+"""What the command modules of services/cli/ share: ``fail``, the exit status of an
+interrupted command, the options several commands take, and the checks and look-ups they make
+the same way.
 
-Every ``services/<tool>/cli.py`` imports from here; services/cli.py only assembles their Typer
-apps. This module imports nothing above the runtime and services/fleet_state.py, so that
-every tool's cli may import it (README.md, "How it is built").
+Every command module beside it imports from here; services/cli/__init__.py only assembles
+their Typer apps. This module imports nothing above the runtime and services/fleet_state.py;
+no tool imports services/cli/, the top layer (README.md, "How it is built").
 """
 
 from __future__ import annotations

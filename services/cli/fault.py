@@ -13,7 +13,7 @@ local fleet and one compose fleet running): process faults with ``docker compose
 faults with ``docker network`` and ``tc netem``; message faults still over Zenoh
 (``--router``). The agents, services and channels are those of the fleet's specification:
 ``--spec`` (``ROCO_SPEC``), else the one a local fleet's run folder keeps, else the shipped
-one. Bad input: one line, exit 2.
+one. Bad input: one line, exit 2. The faults themselves: services/fault/.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 import zenoh
 
-from services.cli_common import (
+from services.cli.common import (
     MARKUP,
     CredentialsOption,
     RouterOption,
@@ -37,11 +37,11 @@ from services.cli_common import (
     fail,
     fleet_system,
 )
-from services.deploy.engine import ComposeFleet, running_fleets
 from services.fault import process
 from services.fault.compose import DEFAULT_FILE, Compose, compose_services, joined_services
+from services.fault.control import NetChange, clear_update
 from services.fault.process import ACTIONS, FaultError, UpFleet, local_services
-from services.fleet_state import FLEET_FILE
+from services.fault.target import SeveralFleets, compose_target, record, router_endpoint
 from services.runtime.faults import (
     ANY_CHANNEL,
     FaultEvent,
@@ -80,22 +80,6 @@ ComposeFile = Annotated[
 ]
 
 
-def _compose(flag: bool | None, project: str | None, file: Path | None, runs_dir: Path) -> Compose | None:
-    """The compose fleet a fault command acts on, None for the local fleet of ``roco up``.
-    Without ``--compose/--local`` (``flag`` None) and ``ROCO_COMPOSE_PROJECT``: the local fleet
-    when ``runs_dir`` holds one, else the compose fleet that runs (several: exit 2 asking for
-    ``--project``; none: local, whose error says to start one or add ``--compose``)."""
-    named = project or Settings.from_env(only=("compose_project",)).compose_project
-    if _local(flag, named, runs_dir):
-        return None
-    if named is not None:
-        return Compose(file=file or DEFAULT_FILE, project=named, state_dir=runs_dir)
-    running = _the_running_fleet()
-    if running is not None:
-        return _compose_of(running, file, runs_dir)
-    return Compose(file=file or DEFAULT_FILE, state_dir=runs_dir) if flag else None
-
-
 def _fleet(
     flag: bool | None,
     project: str | None,
@@ -104,10 +88,14 @@ def _fleet(
     router: str | None,
     spec: Path | None,
 ) -> tuple[Compose | None, SystemSpec]:
-    """The fleet a fault command acts on (:func:`_compose`: None for the local one) and its
+    """The fleet a fault command acts on (services/fault/target.py ``compose_target``: None
+    for the local one; several compose fleets running and none named: exit 2) and its
     specification: ``spec`` (``--spec``), else the one the local fleet's run folder keeps, else
     the shipped one; a compose fleet's services are that specification's."""
-    dc = _compose(flag, project, file, runs_dir)
+    try:
+        dc = compose_target(flag, project, file, runs_dir)
+    except SeveralFleets as exc:
+        raise fail(str(exc), code=2) from None
     if dc is None:
         return None, fleet_system(spec, runs_dir, router)
     from services.spec.model import load
@@ -116,40 +104,13 @@ def _fleet(
     return dataclasses.replace(dc, services=compose_services(system), joined=joined_services(system)), system
 
 
-def _local(flag: bool | None, named: str | None, runs_dir: Path) -> bool:
-    """Whether the local fleet is meant: ``--local``, or neither flag nor project given and
-    ``runs_dir`` holds the state of ``roco up``'s fleet."""
-    return flag is False or (flag is None and named is None and (runs_dir / FLEET_FILE).exists())
-
-
-def _the_running_fleet() -> ComposeFleet | None:
-    """The one compose fleet that runs (services/deploy/engine.py), None when none does; exit
-    2 asking for ``--project`` when several do."""
-    fleets = running_fleets()
-    if len(fleets) > 1:
-        names = ", ".join(f.project for f in fleets)
-        raise fail(f"compose fleets {names} run: say which with --compose --project NAME", code=2)
-    return fleets[0] if fleets else None
-
-
-def _compose_of(fleet: ComposeFleet, file: Path | None, runs_dir: Path) -> Compose:
-    """The running ``fleet``: its project, and the first of its compose files that is on this
-    host unless ``file`` is given."""
-    return Compose(file=file or fleet.file() or DEFAULT_FILE, project=fleet.project, state_dir=runs_dir)
-
-
 def _endpoint(router: str | None, runs_dir: Path, credentials: Path | None = None) -> str:
-    """The router endpoint (``router``, the fleet of ``roco up``, ``ROCO_ROUTER``), with
-    ``credentials`` registered for it when given (services/security/context.py)."""
+    """The router endpoint (services/fault/target.py ``router_endpoint``: ``router``, the fleet
+    of ``roco up``, ``ROCO_ROUTER``), with ``credentials`` registered for it when given
+    (services/security/context.py)."""
     from services.security.context import register
 
-    if router:
-        endpoint = router
-    else:
-        try:
-            endpoint = UpFleet.load(runs_dir).endpoint
-        except FaultError:
-            endpoint = ",".join(Settings.from_env(only=("router",)).router)
+    endpoint = router_endpoint(router, runs_dir)
     if credentials is not None:
         if not credentials.is_dir():
             raise fail(f"{credentials}: no such credentials folder", code=2)
@@ -174,31 +135,19 @@ def _session(endpoint: str) -> Iterator[zenoh.Session]:
 
 
 def _record(endpoint: str, events: list[FaultEvent]) -> None:
-    """Hand the events to the traffic recorder; a warning (not a failure) when it cannot."""
-    from services.runtime.session import SessionRefused, alive_agents, open_operator
-
-    try:
-        session = open_operator(endpoint)
-    except SessionRefused as exc:
-        typer.echo(f"roco: (fault not recorded: {exc})", err=True)
-        return
-    try:
-        if "recorder" not in alive_agents(session, timeout=0.5):
-            typer.echo("roco: (fault not recorded: the traffic recorder is not alive)", err=True)
-            return
-        if not process.record_events(session, events):
-            typer.echo("roco: (the traffic recorder did not confirm the fault event)", err=True)
-    finally:
-        session.close()
+    """Hand the events to the traffic recorder (services/fault/target.py ``record``); a warning
+    (not a failure) when it cannot."""
+    warning = record(endpoint, events)
+    if warning is not None:
+        typer.echo(f"roco: {warning}", err=True)
 
 
-def _compose_faults(endpoint: str, apply: Callable[[list[FaultEvent]], None]) -> None:
-    """Run ``apply`` (it appends the events of the container faults it applies), tell what
-    was applied and hand the events to the traffic recorder; a :class:`FaultError`: one line,
+def _compose_faults(endpoint: str, apply: Callable[[], list[FaultEvent]]) -> None:
+    """Run ``apply`` (it applies container faults and returns their events), tell what was
+    applied and hand the events to the traffic recorder; a :class:`FaultError`: one line,
     exit 1."""
-    events: list[FaultEvent] = []
     try:
-        apply(events)
+        events = apply()
     except FaultError as exc:
         raise fail(str(exc)) from None
     for ev in events:
@@ -319,42 +268,9 @@ def net(
     dc, system = _fleet(compose, project, compose_file, runs_dir, router, spec)
     endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None:
-        _compose_faults(endpoint, _container_net(dc, service, delay, loss, partition, dev))
+        _compose_faults(endpoint, lambda: dc.net(service, delay, loss, partition, dev))
         return
     _agent_net(endpoint, service, NetChange(delay, loss, partition), system.launch_order)
-
-
-def _container_net(
-    dc: Compose, service: str, delay: float | None, loss: float | None, partition: bool | None, dev: str
-) -> Callable[[list[FaultEvent]], None]:
-    """What `roco fault net` applies to a compose fleet's container: netem when the delay or
-    loss is given, then a partition or its healing."""
-
-    def apply(events: list[FaultEvent]) -> None:
-        if delay is not None or loss is not None:
-            events.append(dc.netem(service, delay or 0.0, loss or 0.0, dev))
-        if partition is True:
-            events.append(dc.partition(service))
-        elif partition is False:
-            events.append(dc.heal(service))
-
-    return apply
-
-
-@dataclasses.dataclass(frozen=True)
-class NetChange:
-    """What `roco fault net` changes of an agent's network faults (None: kept as it is)."""
-
-    delay: float | None
-    loss: float | None
-    partition: bool | None
-
-    def applied_to(self, now: NetFaults) -> NetFaults:
-        return NetFaults(
-            delay_s=now.delay_s if self.delay is None else self.delay,
-            loss=now.loss if self.loss is None else self.loss,
-            partition=now.partition if self.partition is None else self.partition,
-        )
 
 
 def _agent_net(endpoint: str, service: str, change: NetChange, agents: tuple[str, ...]) -> None:
@@ -487,42 +403,11 @@ def msg(
 
 
 # ---- clear and show ----------------------------------------------------------------------
-def _container_clear(dc: Compose, target: str | None, dev: str) -> Callable[[list[FaultEvent]], None]:
-    """What `roco fault clear` applies to a compose fleet's containers (``target``, or every
-    service): a partition healed, netem removed (every service: where it can be)."""
-
-    def apply(events: list[FaultEvent]) -> None:
-        for service in [target] if target else dc.services:
-            if service in dc.partitioned():
-                events.append(dc.heal(service))
-            if target is not None:
-                events.append(dc.netem(service, 0.0, 0.0, dev))
-            else:
-                # not running, or no tc in its image: nothing to clear there
-                with contextlib.suppress(FaultError):
-                    events.append(dc.netem(service, 0.0, 0.0, dev))
-
-    return apply
-
-
 def _check_target(target: str | None, system: SystemSpec) -> None:
     """Exit 2 unless ``target`` is None, a channel of ``system``, '*' or a service."""
     channels = _channels(system)
     if target is not None and target not in (*channels, ANY_CHANNEL, *compose_services(system)):
         raise fail(f"{target!r} is neither a channel ({', '.join(channels)}) nor a service", code=2)
-
-
-def _clear_update(target: str | None, system: SystemSpec) -> tuple[FaultUpdate, str | None] | None:
-    """The update that clears ``target``'s faults in the fault layers of ``system``'s agents,
-    and the agent it goes to (None: every agent); None when ``target`` is a service without one."""
-    channels = _channels(system)
-    if target in system.agent_names:
-        return FaultUpdate(clear_services=[target]), target
-    if target is None:
-        return FaultUpdate(clear_channels=["*"], clear_services=["*"]), None
-    if target in (*channels, ANY_CHANNEL):
-        return FaultUpdate(clear_channels=[target]), None
-    return None
 
 
 @fault_app.command()
@@ -544,10 +429,10 @@ def clear(
     _check_target(target, system)
     endpoint = _endpoint(router, runs_dir, credentials)
     if dc is not None and (target is None or target in dc.services):
-        _compose_faults(endpoint, _container_clear(dc, target, dev))
+        _compose_faults(endpoint, lambda: dc.clear(target, dev))
     from services.fault.control import send_update
 
-    clearing = _clear_update(target, system)
+    clearing = clear_update(target, system)
     if clearing is None:
         if dc is None:
             raise fail(f"{target} has no fault layer locally: nothing to clear", code=2)

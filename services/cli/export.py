@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from services.cli_common import SpecFile, chosen_spec, fail
+from services.cli.common import SpecFile, chosen_spec, fail
 
 export_app = typer.Typer()
 

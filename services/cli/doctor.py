@@ -1,4 +1,5 @@
-"""``roco doctor``: what this machine offers roco, and how to get what is missing."""
+"""``roco doctor``: what this machine offers roco, and how to get what is missing
+(services/doctor/)."""
 
 from __future__ import annotations
 
