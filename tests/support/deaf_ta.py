@@ -8,6 +8,7 @@ again is the real one. A test names it as a_ta's implementation in a copy of the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from services.agents.task_executor.agent import TaskExecutor
@@ -22,20 +23,32 @@ class ThreadKiller(BaseException):
     """Not an Exception: the transport's guard around its callback lets it through."""
 
 
+class Deafening:
+    """The agent's transport, but for a subscription to its inbox: its callback raises
+    :class:`ThreadKiller` at a_co's first C1 communicate of the run (every other attribute is
+    the transport's own)."""
+
+    def __init__(self, inner: Any, name: str) -> None:
+        self.inner = inner
+        self.plan_key = keys.fipa_key("C1", "a_co", name)
+
+    def subscribe(self, key_expr: str, callback: Callable[[str, bytes], None]) -> None:
+        def on_payload(key: str, payload: bytes) -> None:
+            if key == self.plan_key and _first_time():
+                raise ThreadKiller("planted: a_ta's receiving thread ends")
+            callback(key, payload)
+
+        self.inner.subscribe(key_expr, on_payload)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
 class DeafTaskExecutor(TaskExecutor):
     """:class:`TaskExecutor` whose receiving thread ends at a_co's first C1 communicate of the run."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        engine = self.engine
-        heard = engine._on_payload  # the engine subscribes what it finds here when it binds
-
-        def on_payload(key: str, payload: bytes) -> None:
-            if key == keys.fipa_key("C1", "a_co", self.name) and _first_time():
-                raise ThreadKiller("planted: a_ta's receiving thread ends")
-            heard(key, payload)
-
-        engine._on_payload = on_payload  # type: ignore[method-assign]
+    def __init__(self, transport: Any, spec: Any = None) -> None:
+        super().__init__(Deafening(transport, self.name), spec)
 
 
 def _first_time() -> bool:
