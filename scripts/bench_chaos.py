@@ -5,10 +5,12 @@ table: the faults drawn, how many fell during the command, the verdict's six ans
 time (none when the verdict failed).
 
 Usage: ``python scripts/bench_chaos.py [--hosts] [--realtime] [--kinds K,…] [--count N]
-[--runs-dir DIR] [SEED ...]`` (default seeds 1 2 3 4 5; with ``--hosts`` each run is ``roco chaos
+[--load N] [--runs-dir DIR] [SEED ...]`` (default seeds 1 2 3 4 5; with ``--hosts`` each run is ``roco chaos
 --hosts``: on two hosts of this machine, both routers and the link faulted too; root;
 ``--realtime`` paces the pour to wall time, so that more of the faults fall during it;
-``--kinds`` and ``--count`` go to ``roco chaos``; ``--runs-dir`` keeps each run's folder there).
+``--kinds``, ``--count`` and ``--load`` (N processes keeping a core busy each) go to ``roco
+chaos``; ``--runs-dir`` keeps each run's folder there). The last line says how many runs were
+done: every answer yes.
 The fleet's environment is this one's: ``ROCO_WORLD=loop`` runs the kitchen inside ag_ex's
 loop instead of a world process of its own (docs/executor.md).
 """
@@ -47,6 +49,9 @@ def main() -> int:
     parser.add_argument("--kinds", default="kill,pause,restart", help="fault kinds (roco chaos --kinds)")
     parser.add_argument("--count", type=int, default=None, help="random faults (roco chaos --count)")
     parser.add_argument(
+        "--load", type=int, default=0, help="busy processes beside the fleet (roco chaos --load)"
+    )
+    parser.add_argument(
         "--runs-dir",
         type=Path,
         default=None,
@@ -58,6 +63,7 @@ def main() -> int:
     paced = "paced to wall time" if args.realtime else "not paced"
     kinds = tuple(args.kinds.split(","))
     faulted = f"--kinds {args.kinds}" + (f" --count {args.count}" if args.count else "")
+    faulted += f" --load {args.load}" if args.load else ""
     world = f"{Settings.env_name('world')}={Settings.from_env(only=('world',)).world}"
     print(f"# {title} {faulted}, one run per seed ({time.strftime('%Y-%m-%d')}, {paced}, {world})")
     print(f"Machine: {benchlib.machine(('mujoco', 'pin', 'eclipse-zenoh'))}")
@@ -86,6 +92,8 @@ def main() -> int:
                     "--kinds",
                     args.kinds,
                     *(["--count", str(args.count)] if args.count else []),
+                    "--load",
+                    str(args.load),
                     "--runs-dir",
                     runs,
                     "--quiet",
@@ -107,6 +115,8 @@ def main() -> int:
         in_pour = during.group(1) if during else "?"
         took = f"{wall:.0f}" if proc.returncode == 0 else "–"  # a failed verdict: no run's time
         print(f"| {seed} | {faults} | {in_pour} | " + " | ".join(answers) + f" | {took} |")
+    print()
+    print(f"done: {len(seeds) - failures} of {len(seeds)} runs (every answer yes)")
     return 1 if failures else 0
 
 

@@ -184,18 +184,33 @@ def chaos(
             show_default="2,6",
         ),
     ] = None,
+    busy_processes: Annotated[
+        int,
+        typer.Option(
+            "--load",
+            min=0,
+            help="this many processes beside the fleet, each keeping a core busy (a busy machine)",
+        ),
+    ] = 0,
     spec: SpecFile = None,
 ) -> None:
-    """Kill, pause or restart services at random times while the robot carries out a command
-    (each service once by default), then say whether the task was done, no command was lost,
-    nothing was executed twice, no object was dropped, the traffic record is intact and no
-    agent raised (RUN/chaos.md). Exit 0 only if all six hold. With `--hosts` the fleet runs on the two
-    hosts of `roco hosts` (link 20 ± 5 ms, 1 % loss unless told; mutual TLS between the
-    routers, access control on) and the link is cut as well. On compose use `roco fault`
-    (docs/recovery.md). The kitchen only: another system (--spec) is refused."""
+    """Kill, pause or restart services at random times while the robot carries out a command (each
+    service once by default; `--load N`: N processes keep a core busy each), then say whether
+    the task was done, no command was lost, nothing was executed twice, no object was dropped,
+    the traffic record is intact and no agent raised (RUN/chaos.md). Exit 0 only if all six
+    hold. With `--hosts` the fleet runs on the two hosts of `roco hosts` (link 20 ± 5 ms, 1 %
+    loss unless told; mutual TLS between the routers, access control on) and the link is cut as
+    well. On compose use `roco fault` (docs/recovery.md). The kitchen only: another system
+    (--spec) is refused."""
     from services.fleet.launcher import spec_env
     from services.scenario.chaos import verdict, write_chaos_report
+    from services.scenario.load import BusyLoad
     from services.scenario.runner import ScenarioRunner
+
+    try:
+        busy = BusyLoad(busy_processes)
+    except ValueError as exc:
+        raise fail(f"--load: {exc}", code=2) from None
 
     path = kitchen_spec(spec, "roco chaos", CHAOS_NEEDS)
     _check_chaos_hosting(hosts, acl, tls, (delay_ms, jitter_ms, loss_pct, cut))
@@ -220,10 +235,13 @@ def chaos(
             on_session=watch.attach if watch is not None else None,
             hosting=hosting,
         )
-        outcome = runner.run()
+        began = time.monotonic()
+        with busy:
+            outcome = runner.run()
+        loaded = busy.line(time.monotonic() - began)
     finish_report(run_dir, info, interrupted=outcome.interrupted)
     v = verdict(run_dir, outcome)
-    path = write_chaos_report(run_dir, sc, outcome, v)
+    path = write_chaos_report(run_dir, sc, outcome, v, loaded)
     typer.echo(path.read_text())
     if not v.ok:
         raise fail(f"the chaos run did not keep everything (see {path})")

@@ -440,16 +440,23 @@ def _mark(ok: bool) -> str:
     return "yes" if ok else "**no**"
 
 
-def write_chaos_report(run_dir: Path, scenario: Scenario, outcome: ScenarioOutcome, v: Verdict) -> Path:
+def _heading(scenario: Scenario, load: str) -> list[str]:
+    """The report's title, the scenario's description and the ``load`` line (when given)."""
+    lines = [f"# {scenario.name}", "", scenario.description, ""]
+    return [*lines, load, ""] if load else lines
+
+
+def write_chaos_report(
+    run_dir: Path, scenario: Scenario, outcome: ScenarioOutcome, v: Verdict, load: str = ""
+) -> Path:
     """Write ``<run>/chaos.md``: the faults injected (with the host each hit, and when the
-    link was down, on two hosts) and the verdict. Returns its path."""
+    link was down, on two hosts), ``load`` (the busy processes beside the fleet,
+    services/scenario/load.py ``BusyLoad.line``; "" leaves it out) and the verdict. Returns its
+    path."""
     hosts = any(f.host is not None for f in outcome.faults)
     host = (" host |", "---|") if hosts else ("", "")
     lines = [
-        f"# {scenario.name}",
-        "",
-        scenario.description,
-        "",
+        *_heading(scenario, load),
         f"| t (s) |{host[0]} service | fault | down (s) | pids | alive again after (s) "
         "| during the command |",
         f"|---:|{host[1]}---|---|---:|---|---:|---|",

@@ -133,6 +133,15 @@ def test_the_verdict_of_a_run_that_kept_everything(tmp_path: Path) -> None:
     assert "| nothing executed twice | yes ag_ex's ledger: 2 command(s) started by 1 ag_ex" in text
 
 
+def test_the_report_says_what_load_ran_beside_the_fleet(tmp_path: Path) -> None:
+    run = _run(tmp_path, RunBuilder())
+    v = verdict(run, _done())
+    line = "load: 2 busy process(es) beside the fleet, 118.0 s of CPU over 60.0 s (1.97 cores)"
+    text = write_chaos_report(run, chaos_scenario(0), _done(), v, line).read_text()
+    assert f"\n\n{line}\n\n| t (s) |" in text
+    assert "load:" not in write_chaos_report(run, chaos_scenario(0), _done(), v).read_text()
+
+
 def test_a_second_execution_a_dropped_object_and_a_lost_command_are_found(tmp_path: Path) -> None:
     b = RunBuilder()
     b.add(
