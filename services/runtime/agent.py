@@ -84,9 +84,9 @@ OVERRIDABLE = frozenset(
 )
 """The names of :class:`Agent` an agent's class may define again: its declarations and the hooks
 the engine calls. Any other of its names that an agent's class defines replaces the context its
-code and the engine rely on (a helper named ``roles`` would), which ``roco spec verify-code``
-refuses (services/spec_check/code_check.py). The engine's own names are out of the way: a
-helper named ``_ended`` once broke the runtime when agent and engine were one class."""
+code and the engine rely on, or is replaced by it (a helper named ``roles``): ``roco spec
+verify-code`` refuses it (services/spec_check/code_check.py). The engine's own names are on
+the engine, out of an agent's way."""
 
 
 class Agent:

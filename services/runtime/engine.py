@@ -690,6 +690,7 @@ class Engine:
 
     @property
     def stopping(self) -> bool:
+        """:meth:`stop` was called (the elementary actions end after the current step)."""
         return self._stop.is_set()
 
     def run(self) -> None:

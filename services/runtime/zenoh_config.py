@@ -13,6 +13,7 @@ from typing import Any, Literal
 
 import zenoh
 
+from services.runtime.acl_kinds import ACL_MESSAGES
 from services.runtime.limits import low_pass_filter
 from services.security.context import identity_name, security_for
 from shared.settings import Settings
@@ -221,19 +222,6 @@ RELAYED = ("**", "**/@adv/**")
 """What the router's link may carry to and from a peer: everything (``**`` never matches a
 verbatim ``@`` chunk, so zenoh-ext's advanced publishers' caches, tokens and heartbeats below
 ``<key>/@adv/`` are named apart)."""
-
-ACL_MESSAGES = (
-    "put",
-    "delete",
-    "declare_subscriber",
-    "query",
-    "reply",
-    "declare_queryable",
-    "liveliness_token",
-    "liveliness_query",
-    "declare_liveliness_subscriber",
-)
-"""Every message kind Zenoh's access control names (eclipse-zenoh DEFAULT_CONFIG.json5)."""
 
 
 def member_config(

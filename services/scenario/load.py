@@ -2,7 +2,8 @@
 scenario or a chaos run (``roco chaos --load N``) shows how the robot does when the machine is
 shared. Each process spins in Python without sleeping (a CPU-bound neighbour, as a build or a
 second simulation would be); they are started with spawn, ended by their process ids when the
-block ends, and their CPU time is read from ``/proc/<pid>/stat`` (proc(5), fields 14 and 15)
+block ends (and end themselves once their parent is gone: a run killed outright leaves no
+spinner behind), and their CPU time is read from ``/proc/<pid>/stat`` (proc(5), fields 14 and 15)
 so that a report can say how much work they took from the fleet.
 """
 
@@ -22,11 +23,17 @@ STOP_TIMEOUT_S = 5.0
 """How long a busy process is given to end after SIGTERM before it is killed."""
 
 
-def spin() -> None:
-    """Body of one busy process: compute forever (ended by a signal)."""
-    n = 0
-    while True:
-        n = (n + 1) & 0xFFFF
+ORPHAN_CHECK_EVERY = 1 << 20
+"""Iterations of :func:`spin` between two looks at its parent (≈ 50 ms of one core)."""
+
+
+def spin(parent: int) -> None:
+    """Body of one busy process: compute until ended by a signal or until process ``parent``
+    is no longer its parent (it ended; the process was handed to init)."""
+    while os.getppid() == parent:
+        n = 0
+        while n < ORPHAN_CHECK_EVERY:
+            n += 1
 
 
 def cpu_seconds(pid: int) -> float:
@@ -39,12 +46,13 @@ def cpu_seconds(pid: int) -> float:
 @dataclass
 class BusyLoad:
     """``n`` busy processes (0 ≤ n ≤ :data:`MAX_LOAD`) while the ``with`` block runs, each
-    running ``target`` (:func:`spin`; a module-level function, as spawn imports it again); raises
+    running ``target(parent pid)`` (:func:`spin`; a module-level function, as spawn imports it
+    again); raises
     ValueError for another ``n``. :attr:`cpu_s` holds the CPU time they used (s, all of them)
     once the block has ended."""
 
     n: int
-    target: Callable[[], None] = spin
+    target: Callable[[int], None] = spin
     cpu_s: float = 0.0
     _procs: list[BaseProcess] = field(default_factory=list)
 
@@ -55,7 +63,7 @@ class BusyLoad:
     def __enter__(self) -> BusyLoad:
         ctx = mp.get_context("spawn")
         for k in range(self.n):
-            p = ctx.Process(target=self.target, name=f"roco-load-{k}", daemon=True)
+            p = ctx.Process(target=self.target, args=(os.getpid(),), name=f"roco-load-{k}", daemon=True)
             p.start()
             self._procs.append(p)
         return self

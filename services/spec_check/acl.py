@@ -30,20 +30,10 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from services.runtime import keys
+from services.runtime.acl_kinds import Message
 from services.spec.model import SystemSpec
 
 Flow = Literal["ingress", "egress"]
-Message = Literal[
-    "put",
-    "delete",
-    "declare_subscriber",
-    "query",
-    "reply",
-    "declare_queryable",
-    "liveliness_token",
-    "liveliness_query",
-    "declare_liveliness_subscriber",
-]
 
 RECORDER = "recorder"  # services/recorder/recorder.py: RECORDER
 OPERATOR = "operator"

@@ -150,8 +150,8 @@ def shadowing(agent: str, cls: type) -> list[str]:
     """One problem per name of the runtime's :class:`~services.runtime.agent.Agent` that agent
     ``agent``'s class ``cls`` (or a base of its own, not the runtime's) defines again, but those
     it may (``OVERRIDABLE``): an agent's attribute or method that replaces one of the
-    runtime's breaks it, often far from the cause (a helper ``_ended`` once made the runtime
-    call a bool)."""
+    runtime's, or is replaced by it, breaks one of them far from the cause (a helper ``post`` the
+    person's face calls; an attribute ``roles`` the runtime sets again)."""
     runtime = runtime_names() - OVERRIDABLE
     problems = []
     for klass in cls.__mro__:

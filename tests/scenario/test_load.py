@@ -3,10 +3,15 @@ the fleet while the run lasts, are ended with it, and the report says how much C
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing as mp
+import os
+import signal
 import subprocess
 import sys
 import threading
 import time
+from multiprocessing.connection import Connection
 from pathlib import Path
 
 import pytest
@@ -18,9 +23,16 @@ BUSY_S = 0.3
 WITHIN_S = 30.0
 
 
-def sleep_forever() -> None:
+def sleep_forever(parent: int) -> None:
     """A planted load that does nothing: it waits instead of computing."""
     threading.Event().wait()
+
+
+def hold_a_load(conn: Connection) -> None:
+    """Body of a process that runs one busy process and waits (to be killed outright)."""
+    with BusyLoad(1) as load:
+        conn.send(load.pids)
+        threading.Event().wait()
 
 
 def cpu_reached(load: BusyLoad, each_s: float, within_s: float) -> bool:
@@ -56,6 +68,25 @@ def test_no_load_starts_nothing_and_says_so() -> None:
     with BusyLoad(0) as load:
         assert load.pids == []
     assert load.line(5.0) == "load: none (the machine as it was)"
+
+
+def test_a_busy_process_ends_itself_when_its_parent_was_killed() -> None:
+    ctx = mp.get_context("spawn")
+    ours, theirs = ctx.Pipe()
+    holder = ctx.Process(target=hold_a_load, args=(theirs,))
+    holder.start()
+    assert ours.poll(WITHIN_S)
+    (spinner,) = ours.recv()
+    try:
+        holder.kill()  # SIGKILL: no __exit__ runs in the holder
+        holder.join()
+        deadline = time.monotonic() + 10.0
+        while Path(f"/proc/{spinner}").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not Path(f"/proc/{spinner}").exists()
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(spinner, signal.SIGKILL)
 
 
 @pytest.mark.parametrize("n", [-1, MAX_LOAD + 1])

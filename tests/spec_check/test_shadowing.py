@@ -34,8 +34,8 @@ def test_a_helper_named_like_a_runtime_attribute_is_refused_and_a_hook_is_not() 
 
 
 def test_the_engine_s_own_names_are_out_of_an_agent_s_way() -> None:
-    """A helper named like one of the engine's attributes (``_ended``, which once broke the
-    runtime when the agent and its engine were one class) replaces nothing now."""
+    """A helper named like one of the engine's attributes (``_ended``) or methods (``send``)
+    replaces nothing: they are the engine's, not the agent's."""
     planner = agent_class(default_spec(), "a_pl")
     own = type("Planner4", (planner,), {"_ended": lambda self: True, "send": lambda self: None})
     assert shadowing("a_pl", own) == []
