@@ -54,6 +54,8 @@ JAR_APPROACH_IN_OBJECT: Vec3 = (1.0, 0.0, 0.0)
 """Direction the hand moves in while approaching the grasp (unit, jar frame)."""
 JAR_APPROACH_DISTANCE = 0.20
 JAR_SPREAD = 0.0
+JAR_LOAD = 0.3
+"""kg, the jar with its content as a_km states it (kitchen.ttl ``roco:mass``): the grasp's payload prior."""
 JAR_LIFT = 0.04
 """Lift after grasping (world z), before pulling out along −approach."""
 JAR_RETREAT = 0.25
@@ -68,6 +70,8 @@ BOWL_APPROACH_DISTANCE = 0.06
 BOWL_ENTRY_DISTANCE = 0.25
 """The hand enters the cabinet horizontally (along +x) at approach height from this far."""
 BOWL_SPREAD = 0.0
+BOWL_LOAD = 0.2
+"""kg, the bowl as a_km states it (kitchen.ttl ``roco:mass``)."""
 BOWL_LIFT = 0.05
 BOWL_RETREAT = 0.25
 
@@ -110,14 +114,16 @@ POUR_ANGLE = -2.3
 POUR_DURATION = 4.0
 POUR_WAIT = 2.5
 UNTILT_DURATION = 3.0
-POUR_CLEAR_VIEW: Vec3 = (0.12, 0.15, 0.15)
+POUR_CLEAR_VIEW: Vec3 = (0.12, 0.15, 0.05)
 """After the pour the upright jar moves this far (m, the turned frame of JAR_POUR_START_IN_BOWL)
 from its pour-start pose, forward, up and to the robot's left, so that the head camera sees the
 whole bowl for the content check: beside the bowl the jar and the hand hide half of its floor
 (found by rendering the head's view from candidate poses the IK reaches). Forward keeps the
 left elbow (left_arm_3_joint) 0.33 rad inside its limit at the IK's solution for the bowl at
 BOWL_PLACE_POSITION, outside the controller's joint-limit band (velma/control/limits.py
-``LIMIT_BAND``), which otherwise holds the jar over 1 cm short of the pose."""
+``LIMIT_BAND``), which otherwise holds the jar over 1 cm short of the pose. Up by 5 cm only:
+15 cm up, the left forearm (left_arm_3_link, left_arm_4_link) comes down on the cabinet's top
+board and holds the jar 5–15 mm short (the clear-view time-outs of ``roco chaos``)."""
 
 RIGHT_PICK_POSTURE: tuple[float, ...] = (1.46, -0.98, -0.15, 1.82, -0.2, 1.26, 2.29)
 """right_arm_0..6_joint (rad) before the bowl approach: the IK solution of the bowl entry
@@ -293,7 +299,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
         Release(arm=left, opening=PREGRASP_OPENING),
         MoveTool(arm=left, target=p.jar_pregrasp, duration=SHORT_MOVE),
         MoveTool(arm=left, target=p.jar_grasp, duration=SHORT_MOVE),
-        Grasp(arm=left, spread=JAR_SPREAD),
+        Grasp(arm=left, spread=JAR_SPREAD, load=JAR_LOAD),
         MoveTool(arm=left, target=p.jar_lift, duration=1.0),
         MoveTool(arm=left, target=p.jar_retreat, duration=SHORT_MOVE),
         # --- bowl, right hand
@@ -302,7 +308,7 @@ def pour_script(obs: Observation, bowl_on_table: Vec3 | None = None) -> list[Exe
         MoveTool(arm=right, target=p.bowl_entry, duration=SHORT_MOVE),
         MoveTool(arm=right, target=p.bowl_pregrasp, duration=SHORT_MOVE),
         MoveTool(arm=right, target=p.bowl_grasp, duration=1.0),
-        Grasp(arm=right, spread=BOWL_SPREAD),
+        Grasp(arm=right, spread=BOWL_SPREAD, load=BOWL_LOAD),
         MoveTool(arm=right, target=p.bowl_lift, duration=1.0),
         MoveTool(arm=right, target=p.bowl_retreat, duration=SHORT_MOVE),
         # --- turn to the table, place the bowl

@@ -13,6 +13,7 @@ from velma.control import compiled
 from velma.control.compiled import ENV_LAW, CompiledController, compiled_available, make_controller
 from velma.control.impedance import DEFAULT_CART_STIFFNESS, SafetyLimits, VelmaController
 from velma.control.joints import SIDES
+from velma.control.payload import NO_PAYLOAD, Payload
 from velma.control.robot_model import RobotModel
 from velma.executor.runtime import Runtime
 
@@ -23,7 +24,7 @@ MODES = ("cart", "joint", "safe")
 
 def _command(ctrl: VelmaController, trial: int) -> None:
     """The same random commands on ``ctrl`` for the same ``trial``: every mode pairing,
-    zero and positive stiffnesses, scalar and per-joint joint stiffness."""
+    zero and positive stiffnesses, scalar and per-joint joint stiffness, a payload or none."""
     for k, side in enumerate(SIDES):
         rng = np.random.default_rng(1000 * trial + k)
         cmd = ctrl.arm[side]
@@ -38,6 +39,10 @@ def _command(ctrl: VelmaController, trial: int) -> None:
         cmd.q = rng.normal(size=7)
         cmd.qd = rng.normal(size=7)
         cmd.joint_stiffness = 200.0 if trial % 5 else 300.0 * rng.random(7)
+        held = trial % 3 != 0  # a third of the trials hold nothing
+        ctrl.payload[side] = (
+            Payload(float(2.0 * rng.random()), tuple(0.1 * rng.normal(size=3))) if held else NO_PAYLOAD
+        )
     ctrl.torso_q, ctrl.torso_qd = 0.3, 0.1
 
 

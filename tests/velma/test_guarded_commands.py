@@ -37,7 +37,7 @@ from velma.executor import checkpoint as ck
 from velma.executor.plant import plant_unavailable
 from velma.executor.primitives import POS_TOL, make_primitive
 from velma.executor.runtime import Runtime
-from velma.scenario import script_poses
+from velma.scenario import JAR_LOAD, script_poses
 
 PLANTS = ["compiled", "python"] if plant_unavailable(make_controller(RobotModel())) is None else ["python"]
 DEFAULT = PLANTS[0]
@@ -105,7 +105,7 @@ def rig(request: pytest.FixtureRequest) -> Rig:
     ):
         assert run(rt, command).ok, command
     reached = ck.Capture(rt).take(None)
-    assert run(rt, Grasp(arm=Arm.LEFT)).ok
+    assert run(rt, Grasp(arm=Arm.LEFT, load=JAR_LOAD)).ok  # the plan gives a_km's mass
     assert run(rt, MoveTool(arm=Arm.LEFT, target=shifted(poses.jar_grasp, LIFT_M), duration=1.5)).ok
     return Rig(rt, reached, ck.Capture(rt).take(None), poses.jar_grasp, jar_z)
 

@@ -214,3 +214,17 @@ def test_every_place_lies_inside_its_area(world: WorldModel, obj: str, surface: 
     r = footprint(world.object_info(obj)) / 2
     for x, y, _z in world.placement(obj, surface).positions:
         assert area[0] + r <= x <= area[2] - r and area[1] + r <= y <= area[3] - r, (obj, surface, (x, y))
+
+
+MASS_TOLERANCE_KG = 0.01
+"""How far a_km's mass of an object (its payload prior) may be from the model's: within the
+wrist F/T identification's settling (velma/control/payload_estimate.py)."""
+
+
+@pytest.mark.parametrize("obj", ["jar", "bowl", "cup"])
+def test_a_kms_masses_of_the_objects_are_the_models_with_their_content(world: WorldModel, obj: str) -> None:
+    model = load_kitchen()  # with the content spheres
+    content = [b for b in range(model.nbody) if model.body(b).name.startswith(f"{obj}_content_")]
+    truth = float(model.body_mass[model.body(obj).id] + sum(model.body_mass[b] for b in content))
+    mass = world.object_info(obj).mass
+    assert mass is not None and abs(mass - truth) <= MASS_TOLERANCE_KG, (obj, mass, truth)

@@ -52,7 +52,7 @@ using Array = py::array_t<double, py::array::c_style>;
 
 // Layout of one arm's command row (velma/control/compiled.py writes it).
 constexpr int kMode = 0, kRot = 1, kPos = 10, kTwist = 13, kStiff = 19, kPosture = 25, kQ = 32, kQd = 39,
-              kJointStiff = 46, kCmdWidth = 53;
+              kJointStiff = 46, kLoadMass = 53, kLoadCom = 54, kCmdWidth = 57;
 // Layout of one arm's output row.
 constexpr int oTau = 0, oPrev = 7, oGrip = 14, oErr = 26, oWidth = 32;
 // Modes: their index in impedance.py MODES (compiled.py _MODE).
@@ -181,7 +181,7 @@ class Law {
     wrist_damping_ = damping;
   }
 
-  // One cycle. q, v: (nv,). cmd: (2, 53) per arm (layout above). torso: (3,) setpoint
+  // One cycle. q, v: (nv,). cmd: (2, 57) per arm (layout above). torso: (3,) setpoint
   // q, q̇ and the previous torso torque (NaN: none). prev: (2, 7) previous arm torques (NaN:
   // none). limits: (10,) SafetyLimits. out: (2, 32) per arm: torque (7), torque before the
   // velocity braking (7, the next cycle's ``prev``), grip pose (R row-major 9, p 3), Cartesian
@@ -356,6 +356,16 @@ class Law {
     const bool first = std::isnan(prev[0]);
     for (int k = 0; k < 2; ++k) {
       tau[k] += data_.nle.segment<7>(v0_[k]);
+      const double* c = cmd + k * kCmdWidth;
+      if (c[kLoadMass] != 0.0) {  // what the hand holds (payload.py payload_torque)
+        jac_.setZero();
+        pinocchio::getFrameJacobian(model_, data_, grip_[k], pinocchio::LOCAL, jac_);
+        const Eigen::Vector3d f = c[kLoadMass] * (grip[k].rotation().transpose() * model_.gravity.linear());
+        Vec6 wrench;
+        wrench.head<3>() = -f;
+        wrench.tail<3>() = -Eigen::Vector3d(c[kLoadCom], c[kLoadCom + 1], c[kLoadCom + 2]).cross(f);
+        tau[k] += jac_.middleCols<7>(v0_[k]).transpose() * wrench;
+      }
       for (int i = 0; i < 7; ++i) {
         const double lim_i = k_.arm_torque_limit[i];
         double lo = -lim_i, hi = lim_i;

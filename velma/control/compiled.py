@@ -29,6 +29,7 @@ from velma.control.joints import SIDES, Array
 from velma.control.limits import ARM_TORQUE_LIMIT, FULL_BAND_JOINTS, SINGULAR_JOINTS, TORQUE_RATE_LIMIT
 from velma.control.native import IMPORT_ERROR as _IMPORT_ERROR
 from velma.control.native import extension as _impedance
+from velma.control.payload import Payload
 from velma.control.robot_model import RobotModel
 from velma.control.self_collision import WRIST_BAND, WRIST_BAND_DAMPING, WRIST_BAND_TORQUE, WristField
 
@@ -42,7 +43,7 @@ one (an error if it is not built); unset: the compiled one when built."""
 _MODE = {mode: k for k, mode in enumerate(imp.MODES)}  # kCart, kJoint, kSafe of _impedance.cpp
 _JOINT_KIND = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2, "JointModelRevoluteUnaligned": 3}
 # the command row of one arm (the layout of _impedance.cpp)
-_ROT, _POS, _TWIST, _STIFF, _POSTURE, _Q, _QD, _KJ, _WIDTH = 1, 10, 13, 19, 25, 32, 39, 46, 53
+_ROT, _POS, _TWIST, _STIFF, _POSTURE, _Q, _QD, _KJ, _LOAD, _WIDTH = 1, 10, 13, 19, 25, 32, 39, 46, 53, 57
 
 
 def compiled_available() -> bool:
@@ -156,6 +157,7 @@ class CompiledController(imp.VelmaController):
         self._wrist_of: WristField | None = None
         self._send_wrist()
         self._cmd = np.zeros((2, _WIDTH))
+        self._payload_of: list[Payload | None] = [None, None]  # the payloads in _cmd's rows
         self._torso_in = np.zeros(3)
         self._prev_in = np.zeros((2, 7))
         self._limits_in = np.zeros(10)
@@ -269,7 +271,12 @@ class CompiledController(imp.VelmaController):
             else:
                 row[_Q:_QD] = a.q
                 row[_QD:_KJ] = a.qd
-                row[_KJ:_WIDTH] = a.joint_stiffness
+                row[_KJ:_LOAD] = a.joint_stiffness
+            load = self.payload[side]
+            if load is not self._payload_of[k]:  # mass, then the centre of mass (payload.py)
+                row[_LOAD] = load.mass
+                row[_LOAD + 1 : _WIDTH] = load.com
+                self._payload_of[k] = load
         if self.limits is not self._limits_of:
             lim = self.limits
             self._limits_in[:] = (

@@ -8,7 +8,8 @@ vector part, w ≥ 0, in the current end-effector frame, as on the real robot), 
 + εI)⁻¹`` (ε = ``LAMBDA_REGULARISATION``), D by double diagonalisation of K and Λ with damping
 ratio ξ (0.7 by default; Velma: 0.35), ``N = I − Jᵀ Λ J M⁻¹`` (dynamically consistent null
 space), ``τ_ns`` a joint-space posture spring-damper and ``g + C q̇`` Pinocchio's
-``nonLinearEffects``. The setpoint's twist enters the damping term, so a moving setpoint is
+``nonLinearEffects``, plus in every mode the weight of what the hand holds, τ_load
+(velma/control/payload.py). The setpoint's twist enters the damping term, so a moving setpoint is
 tracked without lag from D.
 
 Joint impedance (mode ``"joint"``: MoveJoints and ``hold``; mode ``"safe"``; the torso):
@@ -61,6 +62,7 @@ from velma.control.limits import (
     singularity_band_torque,
     velocity_limit_torque,
 )
+from velma.control.payload import NO_PAYLOAD, Payload, payload_torque
 from velma.control.robot_model import RobotModel
 from velma.control.self_collision import WristField, wrist_band_torque, wrist_field
 
@@ -240,6 +242,8 @@ class VelmaController:
         self.torso_qd = 0.0
         self.state = {s: ArmState() for s in SIDES}
         self.limits = SafetyLimits()
+        self.payload: dict[str, Payload] = {s: NO_PAYLOAD for s in SIDES}
+        """What each hand holds, compensated in every mode (velma/control/payload.py)."""
         self.wrist: WristField | None = wrist_field()
         """The wrist band's distance table; None switches the band off."""
         model = robot.model
@@ -283,6 +287,11 @@ class VelmaController:
         """World pose of ``side``'s grip frame after ``kinematics`` or ``update``."""
         out: pin.SE3 = self.robot.data.oMf[self.robot.grip_frame_id[side]]
         return out.copy()
+
+    def joint_limits(self, side: str) -> tuple[Array, Array]:
+        """``side``'s arm joint limits, lower and upper (7,) each, rad (velma.xml)."""
+        k = SIDES.index(side)
+        return self._lower[k], self._upper[k]
 
     # ------------------------------------------------------------------ modes
     def hold(self, side: str, q_arm: Array | None = None) -> None:
@@ -360,6 +369,11 @@ class VelmaController:
                     tau[k, 5] += push[0]
                     tau[k, 6] += push[1]
         tau += data.nle[idx]
+        for k in (0, 1):
+            load = self.payload[SIDES[k]]
+            if not load.empty:
+                jac = pin.getFrameJacobian(model, data, self._fid[k], pin.LOCAL)[:, self._arm_sl[k]]
+                tau[k] += payload_torque(load, jac, self._rot_buf[k], model.gravity.linear)
         # torque rate limit, then magnitude limit; as the previous torque is within the
         # magnitude limit, both are one clip to [max(prev − rate, −L), min(prev + rate, L)]
         rate = TORQUE_RATE_LIMIT * self.dt

@@ -35,6 +35,9 @@ import msgspec
 import numpy as np
 
 from velma.control.joints import SIDES
+from velma.control.payload import Payload
+from velma.executor.payloads import SOURCES as LOAD_SOURCES
+from velma.executor.payloads import STATE_SIZE as LOAD_STATE_SIZE
 
 if TYPE_CHECKING:
     import mujoco
@@ -117,6 +120,7 @@ def _layout() -> tuple[tuple[str, int], ...]:
             (f"{s}.hand.distal", 3),
             (f"{s}.hand.broken", 3),  # 0/1
             (f"{s}.lost_cycles", 1),
+            (f"{s}.load", LOAD_STATE_SIZE),  # velma/executor/payloads.py HeldLoads.pack
         ]
     fields += [
         ("torso", 3),  # setpoint, setpoint rate, previous torque (NaN: none yet)
@@ -222,6 +226,7 @@ def _pack(rt: Runtime, v: dict[str, np.ndarray]) -> None:
         v[f"{s}.hand.distal"][:] = h.distal
         v[f"{s}.hand.broken"][:] = h.broken
         v[f"{s}.lost_cycles"][0] = rt.lost_cycles[s]
+        v[f"{s}.load"][:] = rt.loads.pack(s)
     prev_torso = ctrl._prev_torso
     v["torso"][:] = (ctrl.torso_q, ctrl.torso_qd, math.nan if prev_torso is None else prev_torso)
     v["head"][:2] = rt.head_set
@@ -286,6 +291,16 @@ def decode(raw: bytes, fp: Fingerprint) -> Checkpoint:
     return ckpt
 
 
+def _check_load(side: str, load: np.ndarray) -> None:
+    """Raise ``CheckpointError`` unless ``load`` (``HeldLoads.pack``) is a load a hand can hold."""
+    if int(load[4]) not in range(len(LOAD_SOURCES)):
+        raise CheckpointError(f"{side} hand's load from an unknown source {load[4]}")
+    try:
+        Payload(float(load[0]), (float(load[1]), float(load[2]), float(load[3])))
+    except ValueError as exc:
+        raise CheckpointError(f"{side} hand: {exc}") from None
+
+
 def apply(rt: Runtime, ckpt: Checkpoint) -> None:
     """Put ``rt`` into the state of ``ckpt`` (which ``decode`` accepted for ``rt.model``):
     physics, controllers and held objects exactly as they were; the arm setpoints too (a
@@ -312,6 +327,7 @@ def apply(rt: Runtime, ckpt: Checkpoint) -> None:
     for s in SIDES:
         if controller[f"{s}.arm.mode"][0] not in range(len(MODES)):
             raise CheckpointError(f"{s} arm in an unknown mode {controller[f'{s}.arm.mode'][0]}")
+        _check_load(s, controller[f"{s}.load"])
     physics = np.frombuffer(ckpt.physics, dtype=np.float64).copy()
     if not np.all(np.isfinite(physics)):
         raise CheckpointError("non-finite physics state")
@@ -319,6 +335,8 @@ def apply(rt: Runtime, ckpt: Checkpoint) -> None:
     mujoco.mj_forward(rt.model, rt.data)
     _unpack(rt, controller)
     rt.held.update(held)
+    for s in SIDES:
+        rt.loads.unpack(s, controller[f"{s}.load"].tolist(), held[s])
     q, v = rt.q(), rt.v()
     rt.ctrl.kinematics(q, v)
     for s in SIDES:

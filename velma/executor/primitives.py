@@ -7,8 +7,10 @@ in the cycle the command begins, ``step`` every cycle after that; either returns
 
 Failure reasons: ``unreachable`` (IK finds no arm configuration, a joint target outside its
 limits, a look-at point outside the neck's range), ``timeout`` (not converged in time;
-MoveTool, Tilt and MoveJoints add in parentheses by how much and MoveJoints what the hands
-touch),
+MoveTool, Tilt and MoveJoints add in parentheses by how much and what holds them: MoveJoints
+what the hands touch, MoveTool and Tilt what the arm touches, joints in their limit band, what
+the hand touches, a contradicted payload prior), ``invalid load`` (a Grasp's ``load`` the hand
+cannot carry),
 ``no contact`` (fingers closed fully), ``contact lost`` (a held object left the hand during
 a motion), ``not at the grasp pose`` (L_EX ``NOT_AT_GRASP_POSE``: a Grasp given ``at`` found
 the hand farther than its tolerance from there; it did not close), ``invalid guard`` (a
@@ -52,6 +54,8 @@ from velma.control.hand import PROXIMAL_MAX, STALL_SPEED
 from velma.control.ik import IkSearch
 from velma.control.impedance import DEFAULT_CART_STIFFNESS
 from velma.control.joints import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, arm_joints
+from velma.control.limits import LIMIT_BAND
+from velma.control.payload import Payload
 from velma.control.trajectory import (
     MIN_JERK_PEAK_RATE,
     PosePath,
@@ -66,7 +70,9 @@ from velma.frames import rot_from_wxyz
 Result = CommandResult | Observation | WorldCapture
 
 POS_TOL = 0.01  # m, MoveTool/Tilt convergence
-ROT_TOL = 0.1  # rad; a held payload (not gravity-compensated) sags the wrist by up to ~0.08 rad
+ROT_TOL = 0.1
+"""rad, MoveTool/Tilt convergence: set when a held object's weight was not compensated and sagged
+the wrist by up to ≈ 0.08 rad (velma/executor/payloads.py compensates it now); not tightened."""
 SETTLE_TIMEOUT = 2.0  # s after the nominal duration
 JOINT_TOL = 0.03  # rad, MoveJoints convergence
 TORSO_VEL = 0.52  # rad/s (velma/model/README.md "Structure")
@@ -219,12 +225,51 @@ class _CartesianMotion:
             if perr < POS_TOL and rerr < ROT_TOL:
                 return ended(rt, self.name, True, None, perr)
             if t >= self.duration + SETTLE_TIMEOUT:
-                reason = f"timeout (position error {perr * 1000:.1f} mm, rotation error {rerr:.3f} rad)"
-                return ended(rt, self.name, False, reason, perr)
+                return ended(rt, self.name, False, self._timeout_reason(rt, perr, rerr), perr)
         return None
 
     def _perr(self, rt: Runtime) -> float:
         return float(np.linalg.norm(rt.grip(self.side).translation - self.goal.translation))
+
+    def _timeout_reason(self, rt: Runtime, perr: float, rerr: float) -> str:
+        """``timeout (position error P mm, rotation error R rad[; why])``, why: what holds the
+        arm (:func:`what_holds`). Computed once, at the timeout."""
+        error = f"position error {perr * 1000:.1f} mm, rotation error {rerr:.3f} rad"
+        return f"timeout ({'; '.join([error, *what_holds(rt, self.side)])})"
+
+
+def what_holds(rt: Runtime, side: str) -> list[str]:
+    """Why ``side``'s grip frame may stay short of its setpoint, one phrase each: what the arm
+    links touch (``left arm touches left_arm_4_link on cabinet_top``), the joints in their limit
+    band (``at its limit: left_arm_3_joint``), what the hand touches besides what it holds, the
+    payload prior the wrist F/T sensor contradicts."""
+    parts = []
+    touches = rt.arm_touches(side)
+    if touches:
+        parts.append(f"{side} arm touches {', '.join(touches)}")
+    q = rt.arm_q(side)
+    lower, upper = rt.ctrl.joint_limits(side)
+    at_limit = [
+        f"{side}_arm_{k}_joint"
+        for k in range(7)
+        if not lower[k] + LIMIT_BAND <= q[k] <= upper[k] - LIMIT_BAND
+    ]
+    if at_limit:
+        parts.append(f"at its limit: {', '.join(at_limit)}")
+    others = _touched_besides_held(rt, side)
+    if others:
+        parts.append(f"{side} hand touches {', '.join(others)}")
+    verdict = rt.loads.verdict(side)
+    return parts if verdict is None else [*parts, verdict]
+
+
+def _touched_besides_held(rt: Runtime, side: str) -> list[str]:
+    """The bodies ``side``'s hand touches (its last contact scan) other than what it holds and
+    that object's parts (the jar's content spheres, ``jar_content_*``), sorted."""
+    held = rt.held[side]
+    mine = rt.model.body(held).name if held is not None else None
+    names = {rt.model.body(b).name for b in rt.touch[side]}
+    return sorted(n for n in names if mine is None or not (n == mine or n.startswith(f"{mine}_")))
 
 
 class _Guard:
@@ -480,11 +525,17 @@ class GraspPrimitive:
         self.spread = float(cmd.spread)
         self.at = cmd.at
         self.tolerance = float(cmd.tolerance)
+        self.load = cmd.load
         self.phase = "spread"
         self.t0 = 0.0
         self.stall_since: float | None = None
 
     def start(self, rt: Runtime) -> Result | None:
+        if self.load is not None:
+            try:
+                Payload(self.load)
+            except ValueError as exc:
+                return ended(rt, self.name, False, f"invalid load: {exc}")
         if self.at is not None:
             if self.at.frame != "world":
                 return ended(rt, self.name, False, f"unknown frame: {self.at.frame}")
@@ -527,6 +578,7 @@ class GraspPrimitive:
             return ended(rt, self.name, False, "no contact")
         body = max(touch, key=lambda b: touch[b])
         rt.held[self.side] = body
+        rt.loads.grasped(self.side, body, rt.grip(self.side), rt.data.xipos[body], self.load)
         rt.lost_cycles[self.side] = 0
         return ended(rt, self.name, True)
 

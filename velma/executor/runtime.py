@@ -44,6 +44,7 @@ from velma.control.robot_model import RobotModel
 from velma.control.self_collision import SelfCollision
 from velma.executor.capture import DEFAULT_PERCEPTION
 from velma.executor.ground_truth import GroundTruth
+from velma.executor.payloads import HeldLoads
 from velma.executor.plant import CompiledPlant, plant_unavailable
 from velma.executor.state import LINK_BODIES
 from velma.executor.world_link import WorldLink
@@ -172,6 +173,8 @@ class Runtime:
         it, so that the arm ends as it stood before the tilt, not on the elbow of the tilted
         pose. None: unknown. Not in a checkpoint."""
         self.held: dict[str, int | None] = {s: None for s in SIDES}
+        self.loads = HeldLoads(self.model, self.ctrl, self.ft_site)
+        """The load data of what the hands hold, given to the law (velma/executor/payloads.py)."""
         self.touch: dict[str, dict[int, int]] = {s: {} for s in SIDES}
         self.lost_cycles: dict[str, int] = {s: 0 for s in SIDES}
         self.cycles = 0
@@ -361,6 +364,7 @@ class Runtime:
             mujoco.mj_step(self.model, data)
             t1 = time.perf_counter()
         self.cycles += 1
+        self.loads.follow(self.held, self.cycles, self.grip, self.ft_force)
         # each hand is scanned every CONTACT_PERIOD cycles, the two half a period apart, so
         # that no cycle carries both scans
         phase = self.cycles % CONTACT_PERIOD
@@ -401,6 +405,26 @@ class Runtime:
         if self.plant is not None:
             return self.plant.touching(side)
         return self.contacts.touching(self.data, side)
+
+    def arm_touches(self, side: str) -> list[str]:
+        """What ``side``'s arm links (not its hand) touch outside the robot now, as ``LINK on
+        GEOM`` (sorted, distinct): a Cartesian motion that stops short of its goal is usually
+        held by such a contact. From a scratch copy of the kitchen at its present positions
+        (MuJoCo's collision detection, penetrating contacts only); a few ms: for a failure's
+        reason, not for every cycle."""
+        model = self.model
+        scratch = mujoco.MjData(model)
+        scratch.qpos[:] = self.data.qpos
+        mujoco.mj_fwdPosition(model, scratch)
+        prefix, found = f"{side}_arm_", set()
+        for contact in scratch.contact[: scratch.ncon]:
+            if contact.dist > 0.0:
+                continue
+            for mine, other in ((contact.geom1, contact.geom2), (contact.geom2, contact.geom1)):
+                link, touched = model.body(model.geom_bodyid[mine]).name, int(model.geom_bodyid[other])
+                if link.startswith(prefix) and not self.contacts.robot_body[touched]:
+                    found.add(f"{link} on {model.geom(other).name or model.body(touched).name}")
+        return sorted(found)
 
     def self_contacts_now(self) -> list[tuple[int, int]]:
         """(geom, geom) of each contact of the robot with itself now (``ContactMonitor.self_contacts``)."""

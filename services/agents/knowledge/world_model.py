@@ -394,6 +394,7 @@ class WorldModel:
                 location, relation = _name(where), rel
         held = _first(props, ROCO.heldBy)
         size = _first(props, ROCO.size)
+        mass = _first(props, ROCO.mass)
         particles = _first(props, ROCO.particles)
         facing = _first(props, ROCO.facing)
         picked = _first(props, ROCO.pickedFrom)
@@ -405,6 +406,7 @@ class WorldModel:
             pose_stamp=stamp,
             position_sigma=sigma,
             size=_vec3(size) if size is not None else None,
+            mass=float(str(mass)) if mass is not None else None,
             location=location,
             relation=relation,
             held_by=_name(held) if held is not None else None,

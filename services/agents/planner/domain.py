@@ -155,9 +155,10 @@ def a_preshape(s: Any, path: str, arm: str, opening: float) -> Any:
     return _step(s) if s.holding[arm] is None else False
 
 
-def a_grasp(s: Any, path: str, arm: str, obj: str, spread: float, at: Pose) -> Any:
+def a_grasp(s: Any, path: str, arm: str, obj: str, spread: float, at: Pose, load: float | None = None) -> Any:
     """Close ``arm``'s hand on ``obj``; ``at``: the grasp pose the reach brought the hand to
-    (L_EX ``Grasp.at``: ag_ex does not close a hand that is not there)."""
+    (L_EX ``Grasp.at``: ag_ex does not close a hand that is not there); ``load``: ``obj``'s
+    mass as a_km knows it (kg; L_EX ``Grasp.load``, the arm's payload prior)."""
     if s.holding[arm] is not None:
         return False
     return _step(s)
@@ -417,7 +418,7 @@ def m_fetch(s: Any, path: str, obj: str, arm: str) -> Any:
     return [
         *steps,
         ("a_move", f"{take}/reach", arm, grip, reach_s),
-        ("a_grasp", f"{take}/grasp", arm, obj, grasp.spread, grip),
+        ("a_grasp", f"{take}/grasp", arm, obj, grasp.spread, grip, _mass(s, obj)),
         ("a_held", f"{take}/held", obj, arm, where),
         ("a_move", f"{take}/lift", arm, lifted, 1.0),
         ("a_move", f"{take}/withdraw", arm, out, SHORT_MOVE_S),
@@ -554,6 +555,12 @@ def m_safe_stop_reversed(s: Any, path: str) -> Any:
     if len(held) < 2:
         return False
     return [("place", f"{path}/put_down_{o}", o, SAFE_SURFACE, arm) for arm, o in reversed(held)]
+
+
+def _mass(s: Any, name: str) -> float | None:
+    """``name``'s mass (kg) as a_km states it (None: not stated)."""
+    info = _k(s).objects.get(name)
+    return None if info is None else info.mass
 
 
 def _body(s: Any, name: str) -> Body | None:

@@ -61,8 +61,8 @@ def _preshape(arm: str, opening: float) -> Leaf:
     return Execute(Release(arm=Arm(arm), opening=opening)), 1.0
 
 
-def _grasp(arm: str, _obj: str, spread: float, at: Pose) -> Leaf:
-    return Execute(Grasp(arm=Arm(arm), spread=spread, at=at)), 1.5
+def _grasp(arm: str, _obj: str, spread: float, at: Pose, load: float | None = None) -> Leaf:
+    return Execute(Grasp(arm=Arm(arm), spread=spread, at=at, load=load)), 1.5
 
 
 def _posture(arm: str, positions: tuple[float, ...], duration: float) -> Leaf:

@@ -80,12 +80,18 @@ class Grasp(msgspec.Struct, frozen=True, tag="grasp", kw_only=True):
     the reach before it: when the measured grip frame's position is farther than
     ``tolerance`` (m, default ``GRASP_AT_TOLERANCE_M``) from ``at``'s position, the grasp
     fails at once with ``NOT_AT_GRASP_POSE`` without moving the fingers (its orientation is
-    not compared)."""
+    not compared).
+
+    ``load`` (kg; None: not known) is the object's mass as the knowledge base gives it: once the
+    hand holds the object, the arm's impedance law compensates that weight at once, then the
+    weight the wrist F/T sensor measures after the lift (velma/model/README.md "Payload"). A
+    load the hand cannot carry fails at once (``invalid load``), the fingers unmoved."""
 
     arm: Arm
     spread: float = 0.0
     at: Pose | None = None
     tolerance: float = GRASP_AT_TOLERANCE_M
+    load: float | None = None
 
 
 class Release(msgspec.Struct, frozen=True, tag="release", kw_only=True):

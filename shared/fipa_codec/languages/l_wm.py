@@ -159,7 +159,8 @@ class Subscription(msgspec.Struct, frozen=True, tag="subscription"):
 class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """An individual: ``name``, its ``type`` (an O_RoCo class), ``pose`` with ``pose_stamp``
     and ``position_sigma`` (m, one σ of the observed position; None: not given),
-    bounding ``size`` (x, y, z extents), where it is (``location`` with ``relation`` in/on),
+    bounding ``size`` (x, y, z extents), ``mass`` (kg, with its content as the scene began),
+    where it is (``location`` with ``relation`` in/on),
     who holds it (``held_by``), whether its pose was ``localised`` since it last moved, and
     for containers the count of ``particles`` inside. For furniture: ``facing``, the torso
     angle (rad) at which Velma works at it, and ``view_point``, where the head looks (world).
@@ -171,6 +172,7 @@ class ObjectInfo(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     pose_stamp: float | None = None
     position_sigma: float | None = None
     size: Vec3 | None = None
+    mass: float | None = None
     location: str | None = None
     relation: str | None = None
     held_by: str | None = None
