@@ -175,7 +175,8 @@ def _baseline_child(seconds: float, work_us: float, out: multiprocessing.queues.
     """In a spawned process: the loop's real-time setup (enter_realtime, Pacer, spin,
     DeadlineMonitor) around a fixed calculation calibrated to ≈ ``work_us`` per cycle."""
     from velma.executor.loop_wire import DEFAULT_SPIN, DT
-    from velma.executor.timing import DeadlineMonitor, Pacer, enter_realtime
+    from velma.executor.timing import DeadlineMonitor, Pacer
+    from velma.realtime import enter_realtime
 
     a = np.random.default_rng(0).standard_normal((48, 48))
     tmp = np.empty_like(a)
@@ -263,11 +264,13 @@ def row(name: str, s: TimingStats, outcome: str) -> str:
 
 def world(s: TimingStats) -> str:
     """The world process's own cycle in one cell (velma/world/timing.py): late (resets) /
-    stalls / stale (worst age) / held; ``-`` when the physics ran in the loop."""
+    stalls / stale (worst age) / held (while attached); ``-`` when the physics ran in the loop."""
     w = s.world
     if w is None:
         return "-"
-    return f"{w.late} ({w.resets}) / {w.stalls} / {w.stale} ({w.stale_worst_age}) / {w.held}"
+    return (
+        f"{w.late} ({w.resets}) / {w.stalls} / {w.stale} ({w.stale_worst_age}) / {w.held} ({w.held_attached})"
+    )
 
 
 def main() -> int:
@@ -311,7 +314,7 @@ def measure(args: argparse.Namespace) -> int:
     print(
         "| condition | cycles | compute p50 µs | compute p99 µs | compute max µs "
         "| cycles over 1 ms (off-CPU stalls) | lateness p99 µs | overruns | max in a row "
-        "| world: late (resets) / stalls / stale (worst age) / held | scheduling | pour |"
+        "| world: late (resets) / stalls / stale (worst age) / held (while attached) | scheduling | pour |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     runs_dir = args.runs_dir or Path(tempfile.mkdtemp(prefix="roco-bench-"))
@@ -359,7 +362,8 @@ def measure(args: argparse.Namespace) -> int:
         f"stalls (over {STALL_PERIODS * DT * 1e3:.0f} ms between two cycle starts, waits for the controller "
         "excluded); stale commands (a step applied a command older than the newest it could "
         "have had) with the worst age in cycles; held steps (no command applied: before ag_ex "
-        "attached, after it ended, or its command too old)."
+        "attached, after it ended, or its command too old) with, in brackets, those between two "
+        "applied commands (ag_ex there, its command too old)."
     )
     return 0
 

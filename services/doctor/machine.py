@@ -94,7 +94,7 @@ def cannot_render(env: dict[str, str] | None = None, model: str = GL_MODEL) -> s
 
 
 def fifo_check() -> Check:
-    """Whether a process may take SCHED_FIFO (velma/executor/timing.py ``enter_realtime``)."""
+    """Whether a process may take SCHED_FIFO (velma/realtime.py ``enter_realtime``)."""
     if not hasattr(os, "sched_setscheduler"):
         return Check("SCHED_FIFO", Use.REALTIME, False, "not available on this OS", "Linux")
     ok, why = probe(FIFO_PROBE)
@@ -131,13 +131,13 @@ def pinning_check() -> Check:
 
 def cpu_latency_check(device: str | None = None) -> Check:
     """Whether the loop may hold the CPUs' wake-up latency at 0 µs (PM QoS; velma/executor/
-    timing.py ``hold_cpu_latency``): ``device`` (default the loop's ``PM_QOS_DEVICE``) exists
+    realtime.py ``hold_cpu_latency``): ``device`` (default the loop's ``PM_QOS_DEVICE``) exists
     and this user may write it. Not needed, but without it the loop's cycles come back to
     cold caches after each sleep. The loop's module is imported here, not with this one, so
     that a broken install still gets the doctor's other checks."""
     if device is None:
         try:
-            from velma.executor.timing import PM_QOS_DEVICE
+            from velma.realtime import PM_QOS_DEVICE
         except ImportError as exc:
             why = f"cannot tell: {exc}"
             return Check("CPU latency request", Use.REALTIME, False, why, "pip install -e .")

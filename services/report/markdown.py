@@ -23,7 +23,8 @@ from services.report.model import (
 )
 from services.report.robot_clock import RobotClock
 from services.runtime.human import NOTICES_PER_S
-from velma.executor.timing import STALL_OFF_CPU, RealtimeSetup, TimingStats
+from velma.executor.timing import STALL_OFF_CPU, TimingStats
+from velma.realtime import RealtimeSetup
 from velma.world.timing import DT, LATE_AFTER_S, MAX_BEHIND_S, STALL_PERIODS, WorldTiming
 
 HOW_MEASURED = (
@@ -655,6 +656,7 @@ def _world(w: WorldTiming | None) -> str:
             f"age {w.stale_worst_age}" if w.stale else "",
         ),
         ("steps held (no command applied)", str(w.held), ""),
+        ("… of them between two applied commands (the controller's came too late)", str(w.held_attached), ""),
         ("waits for the controller's command", str(w.waits), f"{w.wait_max_us:.0f} µs"),
     ]
     how = (

@@ -43,7 +43,8 @@ from shared.fipa_codec.languages.l_wm import (
     Subscription,
     WorldUpdate,
 )
-from velma.executor.timing import RealtimeSetup, TimingStats
+from velma.executor.timing import TimingStats
+from velma.realtime import RealtimeSetup
 
 STARTED = 1_700_000_000.0
 COMMAND_TEXT = "pour the jar into the bowl"

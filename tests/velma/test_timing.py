@@ -1,4 +1,5 @@
-"""The deadline monitor and the real-time setup of the control loop (velma/executor/timing.py)."""
+"""The deadline monitor of the control loop (velma/executor/timing.py) and the real-time setup
+(velma/realtime.py)."""
 
 from __future__ import annotations
 
@@ -11,15 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from velma.executor import timing
-from velma.executor.timing import (
-    PARTS,
-    STALL_OFF_CPU,
-    DeadlineMonitor,
-    RealtimeSetup,
-    enter_realtime,
-    hold_cpu_latency,
-)
+from velma import realtime
+from velma.executor.timing import PARTS, STALL_OFF_CPU, DeadlineMonitor
+from velma.realtime import RealtimeSetup, enter_realtime, hold_cpu_latency
 
 DT = 0.001
 
@@ -142,13 +137,13 @@ def test_the_cpu_latency_request_is_held_or_refused_with_a_reason(
     without one it says why in one line; the setup's phrase names what was granted."""
     device = tmp_path / "cpu_dma_latency"
     device.write_bytes(b"")
-    monkeypatch.setattr(timing, "PM_QOS_DEVICE", str(device))
-    monkeypatch.setattr(timing, "_held_qos", [])
+    monkeypatch.setattr(realtime, "PM_QOS_DEVICE", str(device))
+    monkeypatch.setattr(realtime, "_held_qos", [])
     assert hold_cpu_latency(0) is None
     assert device.read_bytes() == (0).to_bytes(4, sys.byteorder)
-    assert len(timing._held_qos) == 1  # held open: the request lasts while the file is open
-    os.close(timing._held_qos.pop())
-    monkeypatch.setattr(timing, "PM_QOS_DEVICE", str(tmp_path / "missing"))
+    assert len(realtime._held_qos) == 1  # held open: the request lasts while the file is open
+    os.close(realtime._held_qos.pop())
+    monkeypatch.setattr(realtime, "PM_QOS_DEVICE", str(tmp_path / "missing"))
     reason = hold_cpu_latency(0)
     assert reason is not None and reason.startswith("PM QoS refused:") and "\n" not in reason
     granted = RealtimeSetup(policy="SCHED_FIFO", priority=80, cpus=(1,), pinned=True, cpu_latency_us=0)
@@ -178,3 +173,30 @@ def test_the_threaded_executor_measures_control_and_physics_in_every_cycle() -> 
     split = {p.name: p for p in ex.timing().parts}
     assert split["control"].p50_us > 0 and split["physics"].p50_us > 0
     assert split["physics"].p50_us > split["control"].p50_us / 10  # mj_step is no rounding error
+
+
+def _world_setup_in_child(out: multiprocessing.queues.Queue[tuple[str, int, int, set[int]]]) -> None:
+    from velma.world.main import _realtime_setup
+
+    line = _realtime_setup()
+    out.put((line, os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, os.sched_getaffinity(0)))
+
+
+def test_the_world_takes_the_first_cpu_below_the_loop() -> None:
+    """The world process's real-time setup (velma/world/main.py), in a spawned child: granted,
+    it runs SCHED_FIFO just below the loop's priority on the lowest-numbered CPU (the loop
+    takes the highest); refused, its line says why."""
+    ctx = multiprocessing.get_context("spawn")
+    q: multiprocessing.queues.Queue[tuple[str, int, int, set[int]]] = ctx.Queue()
+    p = ctx.Process(target=_world_setup_in_child, args=(q,))
+    p.start()
+    line, policy, priority, cpus = q.get(timeout=30)
+    p.join(10)
+    allowed = sorted(os.sched_getaffinity(0))
+    if policy != os.SCHED_FIFO:
+        assert "SCHED_FIFO refused" in line, line
+        return
+    assert line.startswith("SCHED_FIFO")
+    assert priority == realtime.WORLD_FIFO_PRIORITY < realtime.FIFO_PRIORITY
+    if len(allowed) > 1:
+        assert cpus == {allowed[0]} and "pinned" in line

@@ -187,6 +187,20 @@ def test_the_clock_counts_each_kind_on_planted_times() -> None:
     assert len(fig.stale_by_age) == N_AGES
 
 
+def test_holds_between_two_commands_are_told_apart_from_holds_before_and_after() -> None:
+    counts = WorldClock(realtime=True)
+    for cycle in range(3):  # before a controller attached
+        counts.applied(cycle, None)
+    counts.applied(3, 2)
+    counts.applied(4, None)  # its command came too late, twice
+    counts.applied(5, None)
+    counts.applied(6, 5)
+    for cycle in range(7, 10):  # after it ended
+        counts.applied(cycle, None)
+    fig = counts.figures()
+    assert (fig.held, fig.held_attached) == (8, 2)
+
+
 def test_the_counts_need_their_slots() -> None:
     with pytest.raises(ValueError, match="slots"):
         WorldClock(np.zeros(N_SLOTS - 1, dtype=np.int64), realtime=True)

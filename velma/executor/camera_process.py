@@ -77,8 +77,8 @@ def camera_idle_s(environ: Mapping[str, str] | None = None) -> float:
 def camera_main(spec: bytes, conn: multiprocessing.connection.Connection) -> None:
     """The child: build ``CameraWork`` from ``spec`` (msgpack ``CameraSpec``), then answer each
     request until the pipe closes. A build that fails answers every request with its reason."""
-    from velma.executor.timing import name_process
     from velma.model.scene import N_PARTICLES, load_kitchen
+    from velma.realtime import name_process
 
     name_process(PROCESS_NAME)
     s = msgspec.msgpack.decode(spec, type=CameraSpec)

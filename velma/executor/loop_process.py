@@ -48,7 +48,8 @@ from velma.executor.loop_wire import (
     Submit,
     ToLoop,
 )
-from velma.executor.timing import DeadlineMonitor, Pacer, RealtimeSetup
+from velma.executor.timing import DeadlineMonitor, Pacer
+from velma.realtime import RealtimeSetup
 
 
 def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) -> None:
@@ -59,7 +60,7 @@ def loop_main(config: bytes, doorbell: multiprocessing.connection.Connection) ->
     from velma.executor.loop import ControlLoop
     from velma.executor.runtime import Runtime
     from velma.executor.state_block import StateWriter
-    from velma.executor.timing import enter_realtime, name_process
+    from velma.realtime import enter_realtime, name_process
     from velma.world.link import RobotLink
 
     name_process(LOOP_PROCESS_NAME)

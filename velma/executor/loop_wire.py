@@ -15,7 +15,7 @@ import numpy.typing as npt
 from shared.fipa_codec.languages.l_ex import CommandResult
 from shared.fipa_codec.languages.l_sd import Observation
 from velma.executor.capture import WorldCapture
-from velma.executor.timing import RealtimeSetup
+from velma.realtime import RealtimeSetup
 
 LOOP_PROCESS_NAME = "velma-loop"
 """The loop process's name in ``ps``, ``top`` and ``/proc/<pid>/comm`` (``name_process``)."""

@@ -107,8 +107,9 @@ from velma.executor.loop_wire import (
 )
 from velma.executor.state import RobotSnapshot, snapshot_of
 from velma.executor.state_block import StateReader
-from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, RealtimeSetup, TimingStats
+from velma.executor.timing import DEFAULT_WINDOW, DeadlineMonitor, TimingStats
 from velma.executor.watch import Watcher, check_period
+from velma.realtime import RealtimeSetup
 from velma.world.link import LinkError, RobotLink
 from velma.world.timing import WorldTiming
 

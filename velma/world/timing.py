@@ -21,7 +21,8 @@ Per run (since the world process started), with ``DT`` = 1 ms the world's period
   its *age* is how many cycles older (1 … ``HOLD_CYCLES`` − 1: older than that, the robot is
   held instead), counted per age, with the worst age;
 - *held*: steps with no command applied (the safety layer held the robot: before a controller
-  attached, after one ended, or when its command came too late);
+  attached, after one ended, or when its command came too late); *held while attached*: those
+  between two applied commands (a controller there on both sides: its command came too late);
 - *waits* (lockstep, as fast as possible): cycles whose command was not yet there when the
   world had stepped and published, so that the world waited for the controller
   (``wait_max_us`` the longest wait). In lockstep no cycle is due at a wall-clock time and
@@ -72,6 +73,7 @@ FIELDS = (
     "wait_max_ns",
     "stale",
     "stale_worst_age",
+    "held_attached",
 )
 """The slots of the counts, in order; the per-age stale counts follow (``N_AGES`` slots)."""
 N_SLOTS = len(FIELDS) + N_AGES
@@ -93,6 +95,7 @@ class WorldTiming(msgspec.Struct, frozen=True, kw_only=True):
     stalls: int
     gap_max_us: float
     held: int
+    held_attached: int = 0
     waits: int
     wait_max_us: float
     stale: int
@@ -117,6 +120,7 @@ class WorldTiming(msgspec.Struct, frozen=True, kw_only=True):
             stalls=v[at["stalls"]],
             gap_max_us=v[at["gap_max_ns"]] / 1e3,
             held=v[at["held"]],
+            held_attached=v[at["held_attached"]],
             waits=v[at["waits"]],
             wait_max_us=v[at["wait_max_ns"]] / 1e3,
             stale=v[at["stale"]],
@@ -141,6 +145,9 @@ class WorldClock:
         self.cycles = self.paced = self.late = self.resets = self.stalls = 0
         self.late_max = self.gap_max = self.wait_max = 0.0
         self.held = self.waits = self.stale = self.stale_worst_age = 0
+        self.held_attached = 0
+        self._attached = False  # a command was applied before
+        self._holding = 0  # steps held since the last applied command
         self.by_age = [0] * N_AGES
         self._last_start: float | None = None
         self._waited = 0.0  # s waited for the controller since the last cycle start
@@ -184,7 +191,11 @@ class WorldClock:
         or None when the robot is held. The newest it could answer is ``cycle`` − 1."""
         if answered is None:
             self.held += 1
+            self._holding += 1
             return
+        if self._attached:
+            self.held_attached += self._holding
+        self._attached, self._holding = True, 0
         age = cycle - 1 - answered
         if age > 0:
             self.stale += 1
@@ -211,6 +222,7 @@ class WorldClock:
             round(self.wait_max * 1e9),
             self.stale,
             self.stale_worst_age,
+            self.held_attached,
             *self.by_age,
         )
         slots[:N_SLOTS] = values
