@@ -114,16 +114,18 @@ POUR_ANGLE = -2.3
 POUR_DURATION = 4.0
 POUR_WAIT = 2.5
 UNTILT_DURATION = 3.0
-POUR_CLEAR_VIEW: Vec3 = (0.12, 0.15, 0.05)
+POUR_CLEAR_VIEW: Vec3 = (0.15, 0.14, 0.14)
 """After the pour the upright jar moves this far (m, the turned frame of JAR_POUR_START_IN_BOWL)
 from its pour-start pose, forward, up and to the robot's left, so that the head camera sees the
 whole bowl for the content check: beside the bowl the jar and the hand hide half of its floor
 (found by rendering the head's view from candidate poses the IK reaches). Forward keeps the
 left elbow (left_arm_3_joint) 0.33 rad inside its limit at the IK's solution for the bowl at
 BOWL_PLACE_POSITION, outside the controller's joint-limit band (velma/control/limits.py
-``LIMIT_BAND``), which otherwise holds the jar over 1 cm short of the pose. Up by 5 cm only:
-15 cm up, the left forearm (left_arm_3_link, left_arm_4_link) comes down on the cabinet's top
-board and holds the jar 5–15 mm short (the clear-view time-outs of ``roco chaos``)."""
+``LIMIT_BAND``), which otherwise holds the jar over 1 cm short of the pose. Its height lies in
+a corridor (tests/velma/test_payload.py): 1 cm higher, the left forearm (left_arm_3_link,
+left_arm_4_link) comes down on the cabinet's top board (at (0.12, 0.15, 0.15) it held the jar
+5–15 mm short: the clear-view time-outs of ``roco chaos``); 2 cm lower, the torso's turn back
+to the cabinet sweeps the hand and the jar through the cup on its shelf."""
 
 RIGHT_PICK_POSTURE: tuple[float, ...] = (1.46, -0.98, -0.15, 1.82, -0.2, 1.26, 2.29)
 """right_arm_0..6_joint (rad) before the bowl approach: the IK solution of the bowl entry

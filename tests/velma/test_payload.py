@@ -5,12 +5,24 @@ wrist F/T identification; a Cartesian motion that stops short says why."""
 
 from __future__ import annotations
 
+import math
+
 import msgspec
 import numpy as np
 import pytest
 
 from shared.fipa_codec.languages.common import Pose
-from shared.fipa_codec.languages.l_ex import Arm, CommandResult, Grasp, MoveTool, Observe, Release, Wait
+from shared.fipa_codec.languages.l_ex import (
+    TORSO_JOINT,
+    Arm,
+    CommandResult,
+    Grasp,
+    MoveJoints,
+    MoveTool,
+    Observe,
+    Release,
+    Wait,
+)
 from shared.fipa_codec.languages.l_sd import Observation
 from velma import scenario as sc
 from velma.control.payload import NO_PAYLOAD, Payload
@@ -146,6 +158,39 @@ def test_a_motion_that_stops_short_says_why(
     assert isinstance(result, CommandResult) and not result.ok
     assert result.reason is not None and result.reason.startswith("timeout (position error")
     assert why in result.reason, result.reason
+
+
+CABINET_JAR_ABOVE = (0.7, 0.2, 0.995)
+"""m: where a_pl's return of the jar carries the grip frame above its cabinet place, before the
+guarded lower to ``CABINET_JAR_SET_DOWN_Z`` (scenario tidy_up; kitchen.ttl ``cabinet_jar_place``)."""
+CABINET_JAR_SET_DOWN_Z = 0.915
+DOWN = (0.0, math.sqrt(0.5), 0.0, math.sqrt(0.5))
+"""The grip frame's orientation there (palm towards +x, as a_pl plans it)."""
+
+
+@pytest.mark.parametrize("dz", [-0.01, 0.0])
+def test_from_the_clear_view_pose_the_jar_goes_back_to_the_cabinet_past_the_cup(
+    poured: bytes, dz: float
+) -> None:
+    """The clear-view pose's height lies in a corridor (velma/scenario.py ``POUR_CLEAR_VIEW``):
+    from it, or 1 cm lower, the torso turns back to the cabinet and the hand carries the jar to
+    its place without touching the cup on its shelf, and the set-down's guarded lower ends on
+    the shelf, not on the cup."""
+    x, y, z = sc.POUR_CLEAR_VIEW
+    rt, loop = _restore(poured)
+    cup = rt.model.body("cup").id
+    assert _hold_at(rt, loop, _view((x, y, z + dz)))[0].ok
+    assert rt.arm_touches("left") == []
+    standing = rt.data.xpos[cup].copy()
+    assert _run(loop, MoveJoints(positions={TORSO_JOINT: 0.0}, duration=sc.SHORT_MOVE)).ok  # type: ignore[union-attr]
+    carry = MoveTool(arm=Arm.LEFT, target=Pose(CABINET_JAR_ABOVE, DOWN), duration=3.0)
+    assert _run(loop, carry).ok  # type: ignore[union-attr]
+    x, y, _ = CABINET_JAR_ABOVE
+    lower = MoveTool(arm=Arm.LEFT, target=Pose((x, y, CABINET_JAR_SET_DOWN_Z), DOWN), duration=1.5, guard=5.0)
+    result = _run(loop, lower)
+    assert isinstance(result, CommandResult) and result.ok
+    assert result.contact is None or (result.tool_error or 0.0) < 0.01, result  # on the shelf
+    assert float(np.linalg.norm(rt.data.xpos[cup] - standing)) < 0.002
 
 
 def test_a_grasp_given_a_load_the_hand_cannot_carry_fails_at_once() -> None:
