@@ -29,6 +29,7 @@ from velma.control.payload import NO_PAYLOAD, Payload
 from velma.control.payload_estimate import LIFTED_M, REST_SPEED, SETTLED_READINGS, PayloadEstimate
 from velma.executor import checkpoint as ck
 from velma.executor.loop import ControlLoop
+from velma.executor.primitives import what_holds
 from velma.executor.runtime import Runtime
 from velma.model.kitchen_mjcf import JAR_MASS
 from velma.model.scene import N_PARTICLES, PARTICLE_MASS
@@ -244,3 +245,15 @@ def test_a_checkpoint_keeps_the_load_and_refuses_one_no_hand_can_hold(poured: by
     bad = msgspec.structs.replace(ckpt, controller=controller.tobytes())
     with pytest.raises(ck.CheckpointError, match="left hand: a payload's mass"):
         ck.apply(Runtime(), bad)
+
+
+def test_an_arm_stretched_into_a_singularity_or_a_limit_is_named() -> None:
+    """``what_holds`` on planted configurations: the elbow stretched (joint 3 at 0 rad, the
+    singularity the law keeps it from) and joint 1 at its limit."""
+    rt = Runtime()
+    for joint, value in (("left_arm_3_joint", 0.05), ("left_arm_1_joint", 2.05)):
+        rt.data.qpos[rt.model.joint(joint).qposadr[0]] = value
+    phrases = what_holds(rt, "left")
+    assert "near a singularity: left_arm_3_joint" in phrases, phrases
+    assert "at its limit: left_arm_1_joint" in phrases, phrases
+    assert not any(p.startswith("near a singularity") for p in what_holds(rt, "right"))

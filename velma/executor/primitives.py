@@ -54,7 +54,7 @@ from velma.control.hand import PROXIMAL_MAX, STALL_SPEED
 from velma.control.ik import IkSearch
 from velma.control.impedance import DEFAULT_CART_STIFFNESS
 from velma.control.joints import HEAD_JOINTS, SIDES, TORSO_JOINT, Array, arm_joints
-from velma.control.limits import LIMIT_BAND
+from velma.control.limits import LIMIT_BAND, SINGULAR_JOINTS, SINGULARITY_BAND, SINGULARITY_HALF_WIDTH
 from velma.control.payload import Payload
 from velma.control.trajectory import (
     MIN_JERK_PEAK_RATE,
@@ -241,26 +241,32 @@ class _CartesianMotion:
 def what_holds(rt: Runtime, side: str) -> list[str]:
     """Why ``side``'s grip frame may stay short of its setpoint, one phrase each: what the arm
     links touch (``left arm touches left_arm_4_link on cabinet_top``), the joints in their limit
-    band (``at its limit: left_arm_3_joint``), what the hand touches besides what it holds, the
-    payload prior the wrist F/T sensor contradicts."""
+    band (``at its limit: left_arm_3_joint``) or in a singularity's band (``near a singularity:
+    left_arm_5_joint``, velma/control/limits.py), what the hand touches besides what it holds,
+    the payload prior the wrist F/T sensor contradicts."""
     parts = []
     touches = rt.arm_touches(side)
     if touches:
         parts.append(f"{side} arm touches {', '.join(touches)}")
-    q = rt.arm_q(side)
-    lower, upper = rt.ctrl.joint_limits(side)
-    at_limit = [
-        f"{side}_arm_{k}_joint"
-        for k in range(7)
-        if not lower[k] + LIMIT_BAND <= q[k] <= upper[k] - LIMIT_BAND
-    ]
-    if at_limit:
-        parts.append(f"at its limit: {', '.join(at_limit)}")
+    parts += _joint_bands(rt, side)
     others = _touched_besides_held(rt, side)
     if others:
         parts.append(f"{side} hand touches {', '.join(others)}")
     verdict = rt.loads.verdict(side)
     return parts if verdict is None else [*parts, verdict]
+
+
+def _joint_bands(rt: Runtime, side: str) -> list[str]:
+    """The phrases of ``side``'s joints in their limit band and, for joints 1, 3 and 5, in the
+    band of their singularity at 0 rad (where the law pushes them back: velma/control/limits.py)."""
+    q = rt.arm_q(side)
+    lower, upper = rt.ctrl.joint_limits(side)
+    names = [f"{side}_arm_{k}_joint" for k in range(7)]
+    at_limit = [names[k] for k in range(7) if not lower[k] + LIMIT_BAND <= q[k] <= upper[k] - LIMIT_BAND]
+    edge = SINGULARITY_HALF_WIDTH + SINGULARITY_BAND
+    singular = [names[k] for k in SINGULAR_JOINTS if abs(q[k]) < edge]
+    phrases = [f"at its limit: {', '.join(at_limit)}"] if at_limit else []
+    return phrases + ([f"near a singularity: {', '.join(singular)}"] if singular else [])
 
 
 def _touched_besides_held(rt: Runtime, side: str) -> list[str]:
