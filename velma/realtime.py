@@ -29,8 +29,8 @@ _held_qos: list[int] = []  # file descriptors of granted PM QoS requests, held u
 
 
 class RealtimeSetup(msgspec.Struct, frozen=True, kw_only=True):
-    """What the OS granted the control loop: ``policy`` (``SCHED_FIFO`` or ``SCHED_OTHER``),
-    ``priority`` (FIFO priority, 0 for OTHER), ``cpus`` (the CPU set the loop may run on),
+    """What the OS granted the calling process: ``policy`` (``SCHED_FIFO`` or ``SCHED_OTHER``),
+    ``priority`` (FIFO priority, 0 for OTHER), ``cpus`` (the CPU set it may run on),
     ``pinned`` (True when the set was narrowed to one CPU), ``cpu_latency_us`` (the CPU
     wake-up latency held through PM QoS, None when not requested or refused), ``notes`` (why
     something was not granted)."""

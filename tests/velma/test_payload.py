@@ -214,7 +214,7 @@ def test_the_estimate_counts_only_readings_at_rest_once_lifted() -> None:
         assert est.reading(weight, 1.0 + LIFTED_M, 0.0)
     assert est.settled and est.mass == pytest.approx(0.2, abs=0.02)  # 3.3 time constants
     assert est.verdict() is not None and "prior 0.500 kg" in est.verdict()  # type: ignore[operator]
-    assert not est.reading(weight, 0.0, 0.0) or est.lifted  # once lifted, stays lifted
+    assert est.reading(weight, 0.0, 0.0)  # once lifted, stays lifted: a reading at any height counts
 
 
 def test_an_estimate_that_agrees_with_its_prior_says_nothing_and_never_goes_negative() -> None:

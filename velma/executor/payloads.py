@@ -53,7 +53,6 @@ class HeldLoads:
         """Each hand's identification, None: it holds nothing."""
         self._body: dict[str, int | None] = {s: None for s in SIDES}
         self._com: dict[str, tuple[float, float, float]] = {s: (0.0, 0.0, 0.0) for s in SIDES}
-        self._last_z: dict[str, float] = {s: 0.0 for s in SIDES}
         self._last_p: dict[str, Array] = {s: np.zeros(3) for s in SIDES}
 
     def grasped(self, side: str, body: int, grip: pin.SE3, com: Array, prior: float | None) -> None:

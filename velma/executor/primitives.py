@@ -504,15 +504,7 @@ class MoveJointsPrimitive:
         )
         parts = [f"{worst} {err:.3f} rad from its target"]
         for side in SIDES:
-            held = rt.held[side]
-            held_name = rt.model.body(held).name if held is not None else None
-            touched = sorted(
-                {
-                    name
-                    for name in (rt.model.body(b).name for b in rt.touch[side])
-                    if held_name is None or not (name == held_name or name.startswith(f"{held_name}_"))
-                }
-            )
+            touched = _touched_besides_held(rt, side)
             if touched:
                 parts.append(f"{side} hand touches {', '.join(touched)}")
         return f"timeout ({'; '.join(parts)})"

@@ -72,9 +72,8 @@ def _inputs(args: argparse.Namespace) -> tuple[int, int | None, Path, int]:
 
 def _realtime_setup() -> str:
     """Ask for SCHED_FIFO at ``WORLD_FIFO_PRIORITY`` on the lowest-numbered CPU this process may
-    use (ag_ex's loop takes the highest): one line saying what the OS granted. Measured with the
-    fleet beside it, 3 runs each (docs/bench/loop.md): on the loop's CPU 42–72 late cycles a
-    run, on the other 10–27; as a normal process 534."""
+    use (ag_ex's loop takes the highest; docs/executor.md "Pacing" measures both placements):
+    one line saying what the OS granted, and why not what it refused."""
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else [0]
     setup = enter_realtime(priority=WORLD_FIFO_PRIORITY, cpu=cpus[0], cpu_latency_us=None)
     return "; ".join([setup.describe(), *setup.notes])
